@@ -1,0 +1,4 @@
+//! `hil-host` command-line interface.
+fn main() {
+    println!("hil-host: see --help");
+}
