@@ -1,0 +1,1 @@
+//! Parameter ids (placeholder until the table lands).
