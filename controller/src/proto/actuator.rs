@@ -1,12 +1,13 @@
-//! `Actuator` (kind 4, card → plant / power stage, 1 kHz, DLC 5): the torque command that
-//! answers one `Sensor` frame.
+//! `Actuator` (kind 4, card → plant / power stage, 1 kHz, DLC 4): the torque command that
+//! answers one `Sensor` frame. Kept to 4 bytes because it is one of the two 1 kHz frames
+//! that dominate the bus load: the limit flags use bits 0–5 of byte 3, the two status bits
+//! fill bits 6–7 of the same byte.
 //!
 //! | off | width | type | field | meaning |
 //! |---|---|---|---|---|
 //! | 0 | 2 | i16 LE | torque | motor torque command, 0.1 mN·m/LSB; must be 0 unless `drive` |
 //! | 2 | 1 | u8 | seq | the `Sensor.seq` this command answers |
-//! | 3 | 1 | u8 | limits | [`LimitFlags`] (bits 6–7 reserved) |
-//! | 4 | 1 | u8 | status | bit0 drive (power stage on), bit1 fault; bits 2–7 reserved |
+//! | 3 | 1 | u8 | bits 0–5 limits, bit 6 drive, bit 7 fault | [`LimitFlags`]; drive = power stage on; fault = card in `FaultReaction`/`Fault` |
 //!
 //! `drive = 0` with a non-zero torque is rejected: a card that is not driving can never
 //! command torque, whatever else goes wrong.
@@ -14,20 +15,18 @@
 use super::field::{self, packet};
 use super::{Error, Kind, LimitFlags};
 
-packet!(Kind::Actuator, 5);
+packet!(Kind::Actuator, 4);
 
 mod off {
     pub const TORQUE: usize = 0;
     pub const SEQ: usize = 2;
-    pub const LIMITS: usize = 3;
-    pub const STATUS: usize = 4;
+    pub const STATUS: usize = 3;
 }
 
 /// Status bit: power stage on (the plant applies `torque`).
-pub const STATUS_DRIVE: u8 = 0x01;
+pub const STATUS_DRIVE: u8 = 0x40;
 /// Status bit: the card is in `FaultReaction` or `Fault`.
-pub const STATUS_FAULT: u8 = 0x02;
-const STATUS_DEFINED: u8 = STATUS_DRIVE | STATUS_FAULT;
+pub const STATUS_FAULT: u8 = 0x80;
 
 impl<T: AsRef<[u8]>> Packet<T> {
     /// Raw torque command.
@@ -38,11 +37,7 @@ impl<T: AsRef<[u8]>> Packet<T> {
     pub fn seq(&self) -> u8 {
         field::u8_at(self.buf(), off::SEQ)
     }
-    /// Raw limit-flags byte.
-    pub fn limits(&self) -> u8 {
-        field::u8_at(self.buf(), off::LIMITS)
-    }
-    /// Raw status byte.
+    /// Raw status byte (limit flags and drive/fault bits).
     pub fn status(&self) -> u8 {
         field::u8_at(self.buf(), off::STATUS)
     }
@@ -56,10 +51,6 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Packet<T> {
     /// Sets the echoed sequence number.
     pub fn set_seq(&mut self, v: u8) {
         field::set_u8(self.buf_mut(), off::SEQ, v)
-    }
-    /// Sets the limit-flags byte.
-    pub fn set_limits(&mut self, v: u8) {
-        field::set_u8(self.buf_mut(), off::LIMITS, v)
     }
     /// Sets the status byte.
     pub fn set_status(&mut self, v: u8) {
@@ -88,16 +79,8 @@ impl Repr {
     pub fn parse<T: AsRef<[u8]>>(p: &Packet<T>) -> Result<Repr, Error> {
         p.check_len()?;
         let status = p.status();
-        if status & !STATUS_DEFINED != 0 {
-            return Err(Error::ReservedBits {
-                kind: KIND,
-                field: "status",
-            });
-        }
-        let limits = LimitFlags::from_bits(p.limits()).ok_or(Error::ReservedBits {
-            kind: KIND,
-            field: "limits",
-        })?;
+        // Every bit of the status byte is defined: bits 0–5 limits, 6 drive, 7 fault.
+        let limits = LimitFlags::from_bits_truncate(status);
         let drive = status & STATUS_DRIVE != 0;
         if !drive && p.torque() != 0 {
             return Err(Error::Inconsistent {
@@ -116,7 +99,7 @@ impl Repr {
 
     /// Writes every byte of the packet.
     pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, p: &mut Packet<T>) {
-        let mut status = 0;
+        let mut status = self.limits.bits();
         if self.drive {
             status |= STATUS_DRIVE;
         }
@@ -125,7 +108,6 @@ impl Repr {
         }
         p.set_torque(self.torque);
         p.set_seq(self.seq);
-        p.set_limits(self.limits.bits());
         p.set_status(status);
     }
 }
