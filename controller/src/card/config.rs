@@ -146,9 +146,15 @@ pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     let be_si = q16(be_raw) * 1e-4 / rad_per_count * period_s;
     let inertia = f64::from(s.raw(p::ROTOR_INERTIA)) * 1e-9;
     let margin = 1.0 - f64::from(s.raw(p::STABILITY_MARGIN)) / 65536.0;
-    units::pd_stability(ke_si, be_si, inertia, period_s, margin.clamp(0.0, 0.999_999))
-        .map(|_| ())
-        .map_err(|why| ConfigError::Unstable { why })
+    units::pd_stability(
+        ke_si,
+        be_si,
+        inertia,
+        period_s,
+        margin.clamp(0.0, 0.999_999),
+    )
+    .map(|_| ())
+    .map_err(|why| ConfigError::Unstable { why })
 }
 
 /// Builds the running configuration for `mode` (or with no main law, for `None`).
@@ -288,7 +294,8 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
     if pmin > pmax {
         return Err(ConfigError::LimitsInverted);
     }
-    let position_limits = (s.raw(p::SOFT_LIMITS_ENABLE) != 0).then_some((i64::from(pmin), i64::from(pmax)));
+    let position_limits =
+        (s.raw(p::SOFT_LIMITS_ENABLE) != 0).then_some((i64::from(pmin), i64::from(pmax)));
 
     let observer_scale = |cpr: i32| units::Scale {
         period_s: f64::from(s.raw(p::CONTROL_PERIOD)) * 1e-6,

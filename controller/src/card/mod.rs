@@ -31,9 +31,8 @@ use crate::fixed_math::{clamp_sym, Counts, Flags, Torque, Vel};
 use crate::laws::{JointState, Measurements, Setpoint};
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::{
-    self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode,
-    NodeId, ParamResponse, ParamStatus, RejectCounters, ReplyTo, State, TelemetryMotion,
-    TelemetryTorque,
+    self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode, NodeId,
+    ParamResponse, ParamStatus, RejectCounters, ReplyTo, State, TelemetryMotion, TelemetryTorque,
 };
 use crate::sensing::{TrackingObserver, Unwrapper};
 
@@ -119,7 +118,10 @@ pub struct Card {
 fn limit_flags(f: Flags) -> LimitFlags {
     let mut l = LimitFlags::NONE;
     l.set(LimitFlags::TORQUE, f.contains(Flags::OUTPUT_SATURATED));
-    l.set(LimitFlags::INTEGRATOR, f.contains(Flags::INTEGRATOR_LIMITED));
+    l.set(
+        LimitFlags::INTEGRATOR,
+        f.contains(Flags::INTEGRATOR_LIMITED),
+    );
     l.set(
         LimitFlags::OVERFLOW,
         f.contains(Flags::OVERFLOW) || f.contains(Flags::INPUT_CLAMPED),
@@ -318,7 +320,14 @@ impl Card {
         self.last_supervisor_us = Some(now_us);
     }
 
-    fn reply(&mut self, to: ReplyTo, status: Result<(), ParamStatus>, seq: u8, id: u16, value: i32) {
+    fn reply(
+        &mut self,
+        to: ReplyTo,
+        status: Result<(), ParamStatus>,
+        seq: u8,
+        id: u16,
+        value: i32,
+    ) {
         let status = match status {
             Ok(()) => ParamStatus::Ok,
             Err(s) => {
@@ -363,7 +372,11 @@ impl Card {
             _ => self.store.clone(),
         };
         let next = self.staging.applied_to(&base);
-        let mode = if self.state == State::Enabled { self.mode } else { None };
+        let mode = if self.state == State::Enabled {
+            self.mode
+        } else {
+            None
+        };
         let built = config::build(&next, mode);
         self.staging.clear();
         match built {
@@ -564,8 +577,10 @@ impl Card {
         if let Some(s) = pend.store {
             self.store = s;
             self.commits = self.commits.saturating_add(1);
-            self.store
-                .set_unchecked(p::COMMIT_COUNT, i32::try_from(self.commits).unwrap_or(i32::MAX));
+            self.store.set_unchecked(
+                p::COMMIT_COUNT,
+                i32::try_from(self.commits).unwrap_or(i32::MAX),
+            );
         }
         self.cfg = pend.config;
         if self.state == State::Enabled {
@@ -693,9 +708,15 @@ impl Card {
                 i64::from(out.out.tau).saturating_add(ff)
             }
             State::QuickStop | State::FaultReaction => {
-                let damp = self.cfg.quick_stop_damping.apply(v1.to_bits()).saturating_neg();
-                let still = i64::from(v1.to_bits()).saturating_abs() <= self.cfg.standstill_velocity;
-                let zero = self.state == State::FaultReaction && self.reaction == Reaction::ZeroTorque;
+                let damp = self
+                    .cfg
+                    .quick_stop_damping
+                    .apply(v1.to_bits())
+                    .saturating_neg();
+                let still =
+                    i64::from(v1.to_bits()).saturating_abs() <= self.cfg.standstill_velocity;
+                let zero =
+                    self.state == State::FaultReaction && self.reaction == Reaction::ZeroTorque;
                 if still || zero {
                     self.state = if self.state == State::QuickStop {
                         State::Disabled
@@ -752,10 +773,8 @@ impl Card {
         let m = if self.telemetry_torque_next {
             Message::TelemetryTorque(TelemetryTorque {
                 torque_cmd: i16::try_from(self.last_cmd).unwrap_or(0),
-                output_torque: i16::try_from(
-                    self.last_meas.tau_env / config::OUTPUT_TORQUE_TO_LAW,
-                )
-                .unwrap_or(0),
+                output_torque: i16::try_from(self.last_meas.tau_env / config::OUTPUT_TORQUE_TO_LAW)
+                    .unwrap_or(0),
                 seq,
                 limits: self.limits,
             })

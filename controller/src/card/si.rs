@@ -91,12 +91,18 @@ pub fn stiffness(s: &CardScale, ke: f64) -> Result<i32, SiError> {
 /// A damping [N·m·s/rad] → a "Q16.16 τLSB per (count/tick)" parameter (`BE`, `B1E`,
 /// `VISCOUS_*`, `QUICK_STOP_DAMPING`).
 pub fn damping(param: u16, s: &CardScale, b: f64) -> Result<i32, SiError> {
-    raw(param, b / TORQUE_LSB_NM * s.rad_per_count() / s.period_s * 65536.0)
+    raw(
+        param,
+        b / TORQUE_LSB_NM * s.rad_per_count() / s.period_s * 65536.0,
+    )
 }
 
 /// Integral gain Ki [N·m/(rad·s)] → `KI` (Q16.16 τLSB per count·tick).
 pub fn integral(s: &CardScale, ki: f64) -> Result<i32, SiError> {
-    raw(p::KI, ki / TORQUE_LSB_NM * s.rad_per_count() * s.period_s * 65536.0)
+    raw(
+        p::KI,
+        ki / TORQUE_LSB_NM * s.rad_per_count() * s.period_s * 65536.0,
+    )
 }
 
 /// A motor torque [N·m] → τLSB parameter (`TORQUE_LIMIT`, `COULOMB_*`, ripple entries, …).
@@ -173,7 +179,9 @@ mod tests {
     fn thesis_gains_round_trip_within_one_lsb() {
         let s = CardScale::THESIS;
         let k = stiffness(&s, 2.0).unwrap();
-        assert!((stiffness_si(&s, k) - 2.0).abs() < 2.0 / 65536.0 * 1e-4 / s.rad_per_count() + 1e-9);
+        assert!(
+            (stiffness_si(&s, k) - 2.0).abs() < 2.0 / 65536.0 * 1e-4 / s.rad_per_count() + 1e-9
+        );
         let b = damping(p::BE, &s, 0.01).unwrap();
         assert!((damping_si(&s, b) - 0.01).abs() / 0.01 < 1e-6);
     }
@@ -181,9 +189,23 @@ mod tests {
     #[test]
     fn errors_name_the_parameter() {
         let s = CardScale::THESIS;
-        assert_eq!(stiffness(&s, -1.0), Err(SiError::OutOfRange { param: p::KE }));
-        assert_eq!(stiffness(&s, f64::NAN), Err(SiError::NotFinite { param: p::KE }));
-        assert_eq!(torque(p::TORQUE_LIMIT, 5.0), Err(SiError::OutOfRange { param: p::TORQUE_LIMIT }));
-        assert_eq!(stiffness(&s, 1e-12), Err(SiError::RoundsToZero { param: p::KE }));
+        assert_eq!(
+            stiffness(&s, -1.0),
+            Err(SiError::OutOfRange { param: p::KE })
+        );
+        assert_eq!(
+            stiffness(&s, f64::NAN),
+            Err(SiError::NotFinite { param: p::KE })
+        );
+        assert_eq!(
+            torque(p::TORQUE_LIMIT, 5.0),
+            Err(SiError::OutOfRange {
+                param: p::TORQUE_LIMIT
+            })
+        );
+        assert_eq!(
+            stiffness(&s, 1e-12),
+            Err(SiError::RoundsToZero { param: p::KE })
+        );
     }
 }

@@ -192,7 +192,10 @@ mod tests {
         assert_eq!(s.get(SUPERVISOR_TIMEOUT), Ok(200));
         assert_eq!(s.get(RIPPLE_TABLE + 63), Ok(0));
         assert_eq!(s.get(RIPPLE_TABLE + 64), Err(ParamStatus::UnknownId));
-        assert_eq!(SLOTS, TABLE.iter().map(|d| usize::from(d.count)).sum::<usize>());
+        assert_eq!(
+            SLOTS,
+            TABLE.iter().map(|d| usize::from(d.count)).sum::<usize>()
+        );
         for d in TABLE {
             assert_eq!(s.raw(d.id), d.default, "{}", d.name);
         }
@@ -202,7 +205,10 @@ mod tests {
     fn write_checks() {
         assert_eq!(check_write(KE, 5, true), Ok(()));
         assert_eq!(check_write(KE, -1, false), Err(ParamStatus::OutOfRange));
-        assert_eq!(check_write(COMMIT_COUNT, 0, false), Err(ParamStatus::ReadOnly));
+        assert_eq!(
+            check_write(COMMIT_COUNT, 0, false),
+            Err(ParamStatus::ReadOnly)
+        );
         assert_eq!(
             check_write(ROTOR_INERTIA, 5, true),
             Err(ParamStatus::NotAllowedInState)
@@ -217,10 +223,19 @@ mod tests {
         st.push(1, BE, 20).unwrap();
         let sum = SetChecksum::of(&[(KE, 10), (BE, 20)]);
         assert_eq!(st.matches(1, 2, sum.crc()), Ok(()));
-        assert_eq!(st.matches(2, 2, sum.crc()), Err(ParamStatus::SequenceMismatch));
+        assert_eq!(
+            st.matches(2, 2, sum.crc()),
+            Err(ParamStatus::SequenceMismatch)
+        );
         assert_eq!(st.matches(1, 1, sum.crc()), Err(ParamStatus::CountMismatch));
-        assert_eq!(st.matches(1, 2, sum.crc() ^ 1), Err(ParamStatus::ChecksumMismatch));
-        assert_eq!(Staging::new().matches(1, 0, 0), Err(ParamStatus::NothingStaged));
+        assert_eq!(
+            st.matches(1, 2, sum.crc() ^ 1),
+            Err(ParamStatus::ChecksumMismatch)
+        );
+        assert_eq!(
+            Staging::new().matches(1, 0, 0),
+            Err(ParamStatus::NothingStaged)
+        );
         st.push(2, KE, 11).unwrap();
         assert_eq!(st.entries(), &[(KE, 11)]);
         let next = st.applied_to(&ParamStore::new());
