@@ -4,3 +4,10 @@
 //! transmission of ratio N and stiffness KT | output inertia I2) and a 3-mass variant, the
 //! environment the output touches, sensors as the card sees them, and a library of physical
 //! effects — one module per effect — shared by the simulator, the fitter and the diagnosis.
+
+pub mod effects;
+pub mod param;
+pub mod units;
+
+pub use effects::{fingerprint, shape_grid, EffectKind, EffectSet, Shape, Trajectory};
+pub use param::{Param, ParamSpec, Role};
