@@ -11,3 +11,9 @@ pub mod units;
 
 pub use effects::{fingerprint, shape_grid, EffectKind, EffectSet, Shape, Trajectory};
 pub use param::{Param, ParamSpec, Role};
+pub mod model;
+pub use model::{Model, ModelError, PlantKind};
+pub mod plant;
+pub use plant::{Environment, Plant, PlantError, PlantOptions, Sensors, TrueState};
+pub mod presets;
+pub use presets::{preset, preset_names, preset_toml};

@@ -45,7 +45,7 @@ pub struct ParamSpec {
     pub max: f64,
     /// How the parameter relates to the effect's fingerprint.
     pub role: Role,
-    /// One line: what it is.
+    /// What it is (the doc comment of the declaration; may start with a space).
     pub doc: &'static str,
 }
 
@@ -275,12 +275,12 @@ impl<'de> Deserialize<'de> for Param {
 #[macro_export]
 #[doc(hidden)]
 macro_rules! define_params {
-    ($( #[doc = $doc:literal] $name:ident : $unit:literal = $default:expr, [$min:expr, $max:expr], $role:expr ;)*) => {
+    ($( $(#[doc = $doc:literal])+ $name:ident : $unit:literal = $default:expr, [$min:expr, $max:expr], $role:expr ;)*) => {
         /// Parameters of this effect as written in a model file (output-referred SI units).
         #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
         #[serde(deny_unknown_fields, default)]
         pub struct Params {
-            $( #[doc = $doc] pub $name: $crate::param::Param, )*
+            $( $(#[doc = $doc])+ pub $name: $crate::param::Param, )*
         }
         impl Default for Params {
             fn default() -> Self {
@@ -296,7 +296,7 @@ macro_rules! define_params {
                 min: $min,
                 max: $max,
                 role: { #[allow(unused_imports)] use $crate::param::Role::*; $role },
-                doc: $doc,
+                doc: concat!($($doc),+),
             }, )*
         ];
         impl Params {

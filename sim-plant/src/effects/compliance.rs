@@ -87,3 +87,18 @@ pub fn shape_grid(_traj: &Trajectory) -> Vec<Shape> {
         })
         .collect()
 }
+
+/// Elastic energy of an engaged deflection `e` for the soft-zone spring (J): the integral of
+/// [`elastic`].
+pub fn potential(e: f64, k_soft: f64, k_hard: f64, knee: f64) -> f64 {
+    let a = e.abs();
+    if knee <= 0.0 {
+        return 0.5 * k_hard * a * a;
+    }
+    let ek = knee / k_soft;
+    if a <= ek {
+        0.5 * k_soft * a * a
+    } else {
+        0.5 * k_soft * ek * ek + knee * (a - ek) + 0.5 * k_hard * (a - ek) * (a - ek)
+    }
+}
