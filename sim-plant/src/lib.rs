@@ -17,3 +17,4 @@ pub mod plant;
 pub use plant::{Environment, Plant, PlantError, PlantOptions, Sensors, TrueState};
 pub mod presets;
 pub use presets::{preset, preset_names, preset_toml};
+pub mod experiments;

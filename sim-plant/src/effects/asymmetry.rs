@@ -24,12 +24,13 @@ crate::define_params! {
     stiction_extra: "N·m" = 0.0, [-1e6, 1e6], Setting;
 }
 
-/// Shift the positive branch of the friction curve (clamped at zero friction).
+/// Shift the positive branch of the friction curve (additively; [`EffectLaws::finalize`]
+/// clamps the sums at zero once every effect is installed, so the order does not matter).
 pub fn install(p: &Params, laws: &mut EffectLaws) {
     let f = &mut laws.friction;
-    f.coulomb_pos = (f.coulomb_pos + p.coulomb_extra.value).max(0.0);
-    f.viscous_pos = (f.viscous_pos + p.viscous_extra.value).max(0.0);
-    f.excess_pos = (f.excess_pos + p.stiction_extra.value).max(0.0);
+    f.coulomb_pos += p.coulomb_extra.value;
+    f.viscous_pos += p.viscous_extra.value;
+    f.excess_pos += p.stiction_extra.value;
 }
 
 /// `[step_ε(v), max(v, 0)]`.

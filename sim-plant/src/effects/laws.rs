@@ -177,6 +177,24 @@ impl PeriodicTorque {
     }
 }
 
+impl EffectLaws {
+    /// Called once after every effect has installed: effects add into shared slots, and only
+    /// the sums have physical bounds (friction levels cannot be negative).
+    pub fn finalize(&mut self) {
+        let f = &mut self.friction;
+        for x in [
+            &mut f.coulomb_pos,
+            &mut f.coulomb_neg,
+            &mut f.excess_pos,
+            &mut f.excess_neg,
+            &mut f.viscous_pos,
+            &mut f.viscous_neg,
+        ] {
+            *x = x.max(0.0);
+        }
+    }
+}
+
 /// Everything the effects of a model install; the integrator evaluates it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct EffectLaws {

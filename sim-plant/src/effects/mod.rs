@@ -206,9 +206,10 @@ macro_rules! registry {
                     self.$module.as_mut().map(|p| p.entries_mut()).unwrap_or_default(), )* }
             }
 
-            /// Write every present effect's contribution into `laws`.
+            /// Write every present effect's contribution into `laws`, then finalize.
             pub fn install(&self, laws: &mut EffectLaws) {
                 $( if let Some(p) = &self.$module { $module::install(p, laws); } )*
+                laws.finalize();
             }
         }
 
