@@ -4,3 +4,17 @@
 //! transmission of ratio N and stiffness KT | output inertia I2) and a 3-mass variant, the
 //! environment the output touches, sensors as the card sees them, and a library of physical
 //! effects — one module per effect — shared by the simulator, the fitter and the diagnosis.
+
+pub mod effects;
+pub mod param;
+pub mod units;
+
+pub use effects::{fingerprint, shape_grid, EffectKind, EffectSet, Shape, Trajectory};
+pub use param::{Param, ParamSpec, Role};
+pub mod model;
+pub use model::{Model, ModelError, PlantKind};
+pub mod plant;
+pub use plant::{Environment, Plant, PlantError, PlantOptions, Sensors, TrueState};
+pub mod presets;
+pub use presets::{preset, preset_names, preset_toml};
+pub mod experiments;

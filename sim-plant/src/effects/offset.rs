@@ -1,0 +1,32 @@
+//! Constant offset: a bias torque the input must supply regardless of motion (amplifier or
+//! D/A offset with the opposite sign, a constant external load). Thesis-notes §7.19 ("seal
+//! friction or magnetic drag missing: a constant extra friction") is the velocity-signed
+//! cousin; this one is unsigned.
+//!
+//! Dynamics: `R = torque`. Fingerprint: `[1]`.
+
+use super::{EffectLaws, Shape, Trajectory};
+
+/// One-line description and fingerprint.
+pub const DESCRIBE: &str = "constant bias torque R = c (amplifier/D-A offset, constant load); \
+     residual is a constant shift, the same in both directions and at rest";
+
+crate::define_params! {
+    /// Constant resisting torque (N·m, output-referred; negative = an assisting bias).
+    torque: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
+}
+
+/// Add the bias to the output torque balance.
+pub fn install(p: &Params, laws: &mut EffectLaws) {
+    laws.offset += p.torque.value;
+}
+
+/// `[1]`.
+pub fn fingerprint(traj: &Trajectory, _shape: &Shape) -> Vec<Vec<f64>> {
+    vec![vec![1.0; traj.len()]]
+}
+
+/// No shape parameters.
+pub fn shape_grid(_traj: &Trajectory) -> Vec<Shape> {
+    vec![Shape::default()]
+}
