@@ -6,3 +6,4 @@
 
 pub mod bus;
 pub mod candump;
+pub mod lab;

@@ -1,0 +1,206 @@
+//! Gains in SI units, as a control engineer states them (output side, like the thesis's
+//! "desired output stiffness 1.1 N·m/deg"), and their translation into the card's parameter
+//! table with the thesis's motor-gain = output-gain / N² rule. The same §2.9 stability guard
+//! the card applies at commit ([`controller::card::config`]) runs here before anything is
+//! sent, so the supervisor refuses an unstable set (unless forced) and can say why.
+
+use anyhow::{anyhow, Result};
+use controller::card::config;
+use controller::card::si::{self, CardScale};
+use controller::card::{ParamStore, Staging};
+use controller::proto::params::{self as p, WatchdogReaction};
+use controller::proto::Mode;
+use controller::units::motor_gain_from_output;
+
+/// Transmission and encoder of the joint the gains are for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointScale {
+    /// Gear ratio N (motor rev per output rev).
+    pub gear_ratio: f64,
+    /// Motor encoder counts per motor rev.
+    pub motor_cpr: f64,
+    /// Output encoder counts per output rev (0 = none).
+    pub output_cpr: f64,
+    /// Rotor (input) inertia at the motor, kg·m² (the stability guard's I).
+    pub rotor_inertia: f64,
+    /// Control period, s.
+    pub period_s: f64,
+}
+
+impl JointScale {
+    /// Card scale for motor-encoder gains.
+    pub fn motor(&self) -> CardScale {
+        CardScale {
+            period_s: self.period_s,
+            counts_per_rev: self.motor_cpr,
+        }
+    }
+    /// Motor counts per output radian.
+    pub fn motor_counts_per_output_rad(&self) -> f64 {
+        self.motor_cpr * self.gear_ratio / std::f64::consts::TAU
+    }
+}
+
+/// Friction feed-forward (output side, N·m and N·m·s/rad).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrictionComp {
+    /// τc⁺.
+    pub coulomb_pos: f64,
+    /// τc⁻ (magnitude).
+    pub coulomb_neg: f64,
+    /// Viscous compensation.
+    pub viscous: f64,
+    /// Under-compensation factor (thesis: "slightly below"; default 0.8).
+    pub under: f64,
+    /// Half-width of the ramp through zero velocity, output rad/s.
+    pub ramp_velocity: f64,
+}
+
+/// A gain set, output-side SI. Zero means "term off".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GainSet {
+    /// Desired output stiffness Ke, N·m/rad.
+    pub stiffness: f64,
+    /// Desired output damping Be, N·m·s/rad.
+    pub damping: f64,
+    /// Integral gain, N·m/(rad·s).
+    pub integral: f64,
+    /// Integrator limit, N·m at the motor.
+    pub integrator_limit: f64,
+    /// Input-velocity damping B1e, output-referred N·m·s/rad.
+    pub input_damping: f64,
+    /// Force P gain (motor N·m per output N·m of error).
+    pub force_kp: f64,
+    /// Force-rate gain, s.
+    pub force_kd: f64,
+    /// Force integral gain, 1/s.
+    pub force_ki: f64,
+    /// Impedance Km = 1 − Ia/Id.
+    pub km: f64,
+    /// Motor torque limit, N·m.
+    pub torque_limit: f64,
+    /// Output velocity limit, rad/s.
+    pub velocity_limit: f64,
+    /// Quick-stop damping, output N·m·s/rad.
+    pub quick_stop_damping: f64,
+    /// Friction compensation.
+    pub friction: Option<FrictionComp>,
+    /// Supervisor watchdog timeout, ms.
+    pub watchdog_ms: u32,
+    /// Watchdog reaction.
+    pub watchdog_reaction: WatchdogReaction,
+    /// Telemetry every N ticks.
+    pub telemetry_divider: u16,
+}
+
+impl Default for GainSet {
+    fn default() -> Self {
+        GainSet {
+            stiffness: 0.0,
+            damping: 0.0,
+            integral: 0.0,
+            integrator_limit: 0.5,
+            input_damping: 0.0,
+            force_kp: 0.0,
+            force_kd: 0.0,
+            force_ki: 0.0,
+            km: 0.0,
+            torque_limit: 2.0,
+            velocity_limit: 20.0,
+            quick_stop_damping: 0.0,
+            friction: None,
+            watchdog_ms: 200,
+            watchdog_reaction: WatchdogReaction::QuickStop,
+            telemetry_divider: 1,
+        }
+    }
+}
+
+fn si_err(e: si::SiError) -> anyhow::Error {
+    let (what, param) = match e {
+        si::SiError::NotFinite { param } => ("is not finite", param),
+        si::SiError::OutOfRange { param } => ("is out of range for its wire format", param),
+        si::SiError::RoundsToZero { param } => ("is too small for its wire format", param),
+    };
+    let name = p::lookup(param).map(|d| d.name).unwrap_or("?");
+    anyhow!("gain `{name}` (param {param:#06x}) {what}")
+}
+
+impl GainSet {
+    /// The parameter entries for this set on `joint` (plant constants included).
+    pub fn entries(&self, j: &JointScale) -> Result<Vec<(u16, i32)>> {
+        let n = j.gear_ratio;
+        let m = j.motor();
+        let mg = |k: f64| motor_gain_from_output(k, n);
+        let mut e = vec![
+            (p::ROTOR_INERTIA, si::inertia(j.rotor_inertia).map_err(si_err)?),
+            (p::MOTOR_COUNTS_PER_REV, j.motor_cpr.round() as i32),
+            (p::OUTPUT_COUNTS_PER_REV, j.output_cpr.round() as i32),
+            (p::GEAR_RATIO, (n * 65536.0).round() as i32),
+            (p::KE, si::stiffness(&m, mg(self.stiffness)).map_err(si_err)?),
+            (p::BE, si::damping(p::BE, &m, mg(self.damping)).map_err(si_err)?),
+            (p::KI, si::integral(&m, mg(self.integral)).map_err(si_err)?),
+            (
+                p::INTEGRATOR_LIMIT,
+                si::torque(p::INTEGRATOR_LIMIT, self.integrator_limit).map_err(si_err)?,
+            ),
+            (p::B1E, si::damping(p::B1E, &m, mg(self.input_damping)).map_err(si_err)?),
+            (p::FORCE_KP, si::torque_ratio(p::FORCE_KP, self.force_kp).map_err(si_err)?),
+            (p::FORCE_KD, si::force_rate(&m, self.force_kd).map_err(si_err)?),
+            (p::FORCE_KI, si::force_integral(&m, self.force_ki).map_err(si_err)?),
+            (p::KM, si::torque_ratio(p::KM, self.km / n).map_err(si_err)?),
+            (p::TORQUE_LIMIT, si::torque(p::TORQUE_LIMIT, self.torque_limit).map_err(si_err)?),
+            (
+                p::VELOCITY_LIMIT,
+                si::velocity(p::VELOCITY_LIMIT, &m, self.velocity_limit * n).map_err(si_err)?,
+            ),
+            (
+                p::QUICK_STOP_DAMPING,
+                si::damping(p::QUICK_STOP_DAMPING, &m, mg(self.quick_stop_damping))
+                    .map_err(si_err)?,
+            ),
+            (p::SUPERVISOR_TIMEOUT, self.watchdog_ms as i32),
+            (p::WATCHDOG_REACTION, self.watchdog_reaction.as_u8().into()),
+            (p::TELEMETRY_DIVIDER, self.telemetry_divider.into()),
+        ];
+        match self.friction {
+            Some(f) => e.extend([
+                (p::FRICTION_ENABLE, 1),
+                (p::COULOMB_POS, si::torque(p::COULOMB_POS, f.coulomb_pos / n).map_err(si_err)?),
+                (p::COULOMB_NEG, si::torque(p::COULOMB_NEG, f.coulomb_neg / n).map_err(si_err)?),
+                (p::VISCOUS_POS, si::damping(p::VISCOUS_POS, &m, mg(f.viscous)).map_err(si_err)?),
+                (p::VISCOUS_NEG, si::damping(p::VISCOUS_NEG, &m, mg(f.viscous)).map_err(si_err)?),
+                (p::UNDER_COMPENSATION, si::fraction(p::UNDER_COMPENSATION, f.under).map_err(si_err)?),
+                (
+                    p::FRICTION_DEADBAND,
+                    si::velocity(p::FRICTION_DEADBAND, &m, f.ramp_velocity * n).map_err(si_err)?,
+                ),
+            ]),
+            None => e.push((p::FRICTION_ENABLE, 0)),
+        }
+        Ok(e)
+    }
+}
+
+/// Runs the card's own configuration check (conversion + §2.9 stability guard) on the card
+/// defaults overlaid with `entries`, for `mode`. `Err` says what the card would refuse.
+pub fn check(entries: &[(u16, i32)], mode: Mode) -> Result<()> {
+    let mut st = Staging::new();
+    for &(id, v) in entries {
+        st.push(0, id, v)
+            .map_err(|s| anyhow!("param {id:#06x}: {}", s.name()))?;
+        if let Err(s) = controller::card::store::check_write(id, v, false) {
+            let name = p::lookup(id).map(|d| d.name).unwrap_or("?");
+            return Err(anyhow!("param `{name}` = {v}: {}", s.name()));
+        }
+    }
+    let store = st.applied_to(&ParamStore::new());
+    config::build(&store, Some(mode)).map(|_| ()).map_err(|e| match e {
+        config::ConfigError::Unstable { why } => anyhow!(
+            "the stability guard refuses these gains ({why:?}): outside the discrete \
+             rigid-rotor PD region of thesis §2.9 with the configured rotor inertia and period \
+             (use --force to send anyway)"
+        ),
+        other => anyhow!("the card would refuse this set: {other:?}"),
+    })
+}

@@ -1,0 +1,137 @@
+//! The plant node: a `sim-plant` model on the bus, seen by the card exactly as a real joint's
+//! sensor electronics would be — a `Sensor` frame (and an `OutputEncoder` frame when the
+//! joint has one) per tick, answered by an `Actuator` frame.
+//!
+//! Lockstep (the default): the node sends the sensor frame of tick k, waits for the
+//! actuator frame echoing k's sequence number, integrates 1 ms with that command held (zero
+//! order hold, ≥ 10 kHz internal substeps), and repeats; nothing depends on wall time, so a
+//! run is bit-reproducible. Real time: the same per tick, but paced by a 1 kHz wall clock,
+//! counting late and missing actuator frames (see [`super::realtime`]).
+
+use controller::proto::{Actuator, Message, NodeId, OutputEncoder, Sensor};
+use sim_plant::{Plant, Sensors as PlantSensors, TrueState};
+
+use crate::bus::ClassicFrame;
+
+/// Output torque LSB on the wire, N·m.
+pub const OUTPUT_TORQUE_LSB: f64 = 0.01;
+/// Motor torque LSB on the wire, N·m.
+pub const MOTOR_TORQUE_LSB: f64 = 1e-4;
+
+/// The plant on the bus.
+#[derive(Debug)]
+pub struct PlantNode {
+    plant: Plant,
+    node: NodeId,
+    seq: u8,
+    tick: u64,
+    period_s: f64,
+    cmd: Option<Actuator>,
+    sensors: PlantSensors,
+    /// Actuator frames that never came (lockstep timeout or real-time deadline).
+    pub missing: u64,
+    /// Actuator frames answering an older tick.
+    pub stale: u64,
+}
+
+impl PlantNode {
+    /// Wraps `plant` for card `node`; reads the first sensor sample.
+    pub fn new(mut plant: Plant, node: NodeId) -> Self {
+        let sensors = plant.read_sensors();
+        PlantNode {
+            plant,
+            node,
+            seq: 0,
+            tick: 0,
+            period_s: 1e-3,
+            cmd: None,
+            sensors,
+            missing: 0,
+            stale: 0,
+        }
+    }
+
+    /// The simulated joint.
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+    /// Mutable access (e.g. to change the environment between ticks).
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
+    }
+    /// True state after the last advance.
+    pub fn state(&self) -> TrueState {
+        self.plant.state()
+    }
+    /// The sensor sample sent this tick.
+    pub fn sensors(&self) -> &PlantSensors {
+        &self.sensors
+    }
+    /// Ticks completed.
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+    /// Sequence number of the current tick.
+    pub fn seq(&self) -> u8 {
+        self.seq
+    }
+    /// The actuator command received for the current tick, if any.
+    pub fn command(&self) -> Option<Actuator> {
+        self.cmd
+    }
+
+    /// The frames of the current tick: `OutputEncoder` first (lower ID, and the card needs
+    /// it before the `Sensor` frame that triggers its step), then `Sensor`.
+    pub fn sensor_frames(&mut self) -> Vec<ClassicFrame> {
+        self.seq = self.seq.wrapping_add(1);
+        self.cmd = None;
+        let s = &self.sensors;
+        let mut out = Vec::with_capacity(2);
+        if let Some(c) = s.output_counts {
+            let m = Message::OutputEncoder(OutputEncoder { output_counts: c as u32, seq: self.seq });
+            out.extend(m.encode::<ClassicFrame>(self.node).ok());
+        }
+        let lsb = (s.torque / OUTPUT_TORQUE_LSB).round();
+        let sensor = Sensor {
+            motor_counts: s.motor_counts as u32,
+            output_torque: Some(lsb.clamp(-32767.0, 32767.0) as i16),
+            seq: self.seq,
+            output_encoder: s.output_counts.is_some(),
+            encoder_error: false,
+        };
+        out.extend(Message::Sensor(sensor).encode::<ClassicFrame>(self.node).ok());
+        out
+    }
+
+    /// Takes a received frame. Returns the actuator command if it answers the current tick.
+    pub fn on_frame(&mut self, f: &ClassicFrame) -> Option<Actuator> {
+        match Message::decode(f) {
+            Ok((node, Message::Actuator(a))) if node == self.node => {
+                if a.seq == self.seq {
+                    self.cmd = Some(a);
+                    Some(a)
+                } else {
+                    self.stale += 1;
+                    None
+                }
+            }
+            _ => None,
+        }
+    }
+
+    /// Integrates one period with the command of this tick held (zero if none came: a real
+    /// power stage without a command drives nothing), then samples the sensors.
+    pub fn advance(&mut self) {
+        let tau = match self.cmd {
+            Some(a) if a.drive => f64::from(a.torque) * MOTOR_TORQUE_LSB,
+            Some(_) => 0.0,
+            None => {
+                self.missing += 1;
+                0.0
+            }
+        };
+        self.plant.advance(tau, self.period_s);
+        self.sensors = self.plant.read_sensors();
+        self.tick += 1;
+    }
+}

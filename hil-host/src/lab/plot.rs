@@ -1,0 +1,81 @@
+//! A PNG of a run: position (setpoint, motor/N, output), torque command, torque sensor.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+
+use super::recorder::Row;
+
+fn range(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
+    let lo = v.clone().fold(f64::INFINITY, f64::min);
+    let hi = v.fold(f64::NEG_INFINITY, f64::max);
+    if !lo.is_finite() || !hi.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.08).max(1e-6);
+    (lo - pad, hi + pad)
+}
+
+/// Draws the three panels of a recording to `path` (PNG, 1200×900).
+pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Result<()> {
+    let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| anyhow!("{e}"))?;
+    let panels = root.split_evenly((3, 1));
+    let t0 = rows.first().map(|r| r.time_s).unwrap_or(0.0);
+    let t1 = rows.last().map(|r| r.time_s).unwrap_or(1.0).max(t0 + 1e-3);
+    type Series<'a> = Vec<(&'a str, RGBColor, Box<dyn Fn(&Row) -> f64 + 'a>)>;
+    let specs: Vec<(&str, Series)> = vec![
+        (
+            "position (output rad)",
+            vec![
+                ("setpoint", BLACK, Box::new(|r: &Row| r.setpoint_pos_rad)),
+                ("motor / N", BLUE, Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio)),
+                ("output", RED, Box::new(|r: &Row| r.output_pos_rad)),
+            ],
+        ),
+        (
+            "torque command (motor N·m)",
+            vec![("command", BLUE, Box::new(|r: &Row| r.torque_cmd_nm))],
+        ),
+        (
+            "torque sensor (output N·m)",
+            vec![
+                ("sensor", RED, Box::new(|r: &Row| r.torque_sensor_nm)),
+                ("setpoint", BLACK, Box::new(|r: &Row| r.setpoint_torque_nm)),
+            ],
+        ),
+    ];
+    for (area, (ylabel, series)) in panels.iter().zip(specs) {
+        let all = series.iter().flat_map(|(_, _, f)| rows.iter().map(f));
+        let (lo, hi) = range(all.collect::<Vec<_>>().into_iter());
+        let mut chart = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, lo..hi)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("time (s)")
+            .y_desc(ylabel)
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        for (name, color, f) in series {
+            chart
+                .draw_series(LineSeries::new(rows.iter().map(|r| (r.time_s, f(r))), color))
+                .map_err(|e| anyhow!("{e}"))?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    root.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}

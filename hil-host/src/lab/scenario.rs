@@ -1,0 +1,232 @@
+//! Scenarios that mirror the thesis's experiments (Schempf 1990 Ch. 4–5), each a complete
+//! recipe: plant preset, what the output touches over time, mode, gains, setpoint stream, and
+//! the figures to extract from the recording.
+
+use anyhow::{bail, Result};
+use controller::proto::Mode;
+use sim_plant::{Environment, Model};
+
+use super::gains::{GainSet, JointScale};
+use super::supervisor::Target;
+use super::trajectory::Trajectory;
+
+/// The experiments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ScenarioKind {
+    /// Spring emulation (PD on the motor encoder) with the output cranked slowly back and
+    /// forth: achieved vs desired stiffness, loop area (thesis §5 "stiffness fidelity").
+    Stiffness,
+    /// Damper emulation, output cranked at several speeds: achieved vs desired damping.
+    Damper,
+    /// Position step under colocated PD: tracking error, overshoot, settling.
+    Step,
+    /// Force (torque) control in contact with a stiff wall/sensor: force tracking.
+    Wall,
+    /// High-gain position hold on a backlash preset: limit-cycle amplitude.
+    Backlash,
+}
+
+impl ScenarioKind {
+    /// Every scenario.
+    pub const ALL: [ScenarioKind; 5] = [
+        ScenarioKind::Stiffness,
+        ScenarioKind::Damper,
+        ScenarioKind::Step,
+        ScenarioKind::Wall,
+        ScenarioKind::Backlash,
+    ];
+    /// CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScenarioKind::Stiffness => "stiffness",
+            ScenarioKind::Damper => "damper",
+            ScenarioKind::Step => "step",
+            ScenarioKind::Wall => "wall",
+            ScenarioKind::Backlash => "backlash",
+        }
+    }
+}
+
+/// A runnable scenario.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Which experiment.
+    pub kind: ScenarioKind,
+    /// Joint constants taken from the plant model.
+    pub scale: JointScale,
+    /// Mode armed.
+    pub mode: Mode,
+    /// Gains.
+    pub gains: GainSet,
+    /// What the trajectory commands.
+    pub target: Target,
+    /// Setpoint stream.
+    pub trajectory: Trajectory,
+    /// Supervisor rate, Hz.
+    pub rate_hz: f64,
+    /// Seconds of streaming.
+    pub duration_s: f64,
+    /// Desired output stiffness (N·m/rad) or damping (N·m·s/rad) for the report.
+    pub desired: f64,
+    crank_speed: f64,
+    crank_period: f64,
+    wall: Option<Environment>,
+}
+
+/// Joint constants of a model (what the supervisor must know).
+pub fn joint_scale(m: &Model) -> JointScale {
+    JointScale {
+        gear_ratio: m.plant.gear_ratio.value,
+        motor_cpr: m.motor.counts_per_rev.value,
+        output_cpr: m.sensors.output_counts_per_rev.value,
+        rotor_inertia: m.motor.inertia.value,
+        period_s: 1e-3,
+    }
+}
+
+/// Arming takes a few ticks (commit, Shutdown, Enable); the environment waits for it.
+pub const SETTLE_S: f64 = 0.2;
+
+impl Scenario {
+    /// The scenario `kind` for the joint `model` with the thesis's gain levels.
+    pub fn new(kind: ScenarioKind, model: &Model) -> Result<Scenario> {
+        let scale = joint_scale(model);
+        let n = scale.gear_ratio;
+        let i1 = scale.rotor_inertia;
+        // Motor-side damping giving kd = Be·T/I ≈ 0.6 (§2.9: well inside 0 < kd < 2),
+        // expressed at the output (×N²).
+        let be_out = 0.6 * i1 / scale.period_s * n * n;
+        let deg = std::f64::consts::PI / 180.0;
+        let base = GainSet {
+            torque_limit: model.motor.max_torque.value.min(3.0),
+            velocity_limit: 200.0 / n.max(1.0) * 10.0,
+            quick_stop_damping: be_out,
+            ..GainSet::default()
+        };
+        let s = match kind {
+            ScenarioKind::Stiffness => {
+                // "medium" desired output stiffness of the thesis, 1.1 N·m/deg.
+                let k = 1.1 / deg;
+                Scenario {
+                    kind,
+                    scale,
+                    mode: Mode::PositionPdColocated,
+                    gains: GainSet { stiffness: k, damping: be_out, ..base },
+                    target: Target::Position,
+                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    rate_hz: 100.0,
+                    duration_s: 6.0,
+                    desired: k,
+                    crank_speed: 0.15,
+                    crank_period: 4.0,
+                    wall: None,
+                }
+            }
+            ScenarioKind::Damper => {
+                let b = 0.8 * be_out;
+                Scenario {
+                    kind,
+                    scale,
+                    mode: Mode::Damper,
+                    gains: GainSet { damping: b, ..base },
+                    target: Target::Position,
+                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    rate_hz: 50.0,
+                    duration_s: 6.0,
+                    desired: b,
+                    crank_speed: 0.0,
+                    crank_period: 0.0,
+                    wall: None,
+                }
+            }
+            ScenarioKind::Step => {
+                let k = 1.1 / deg;
+                Scenario {
+                    kind,
+                    scale,
+                    mode: Mode::PositionPdColocated,
+                    gains: GainSet { stiffness: k, damping: be_out, ..base },
+                    target: Target::Position,
+                    trajectory: Trajectory::Step { from: 0.0, to: 0.1, at: 0.1 },
+                    rate_hz: 200.0,
+                    duration_s: 1.5,
+                    desired: k,
+                    crank_speed: 0.0,
+                    crank_period: 0.0,
+                    wall: None,
+                }
+            }
+            ScenarioKind::Wall => Scenario {
+                kind,
+                scale,
+                mode: Mode::ForcePi,
+                gains: GainSet {
+                    force_kp: 0.3 / n,
+                    force_ki: 5.0 / n,
+                    input_damping: be_out,
+                    ..base
+                },
+                target: Target::Force,
+                trajectory: Trajectory::Step { from: 0.0, to: 5.0, at: 0.2 },
+                rate_hz: 100.0,
+                duration_s: 2.0,
+                desired: 5.0,
+                crank_speed: 0.0,
+                crank_period: 0.0,
+                // Output against the torque sensor + stiff surface, Kf ≫ KT (§2.3).
+                wall: Some(Environment::Spring { stiffness: 2.0e4, damping: 20.0, rest: 0.0 }),
+            },
+            ScenarioKind::Backlash => {
+                // The thesis's high-gain test: 68 N·m/deg at the output.
+                let k = 68.0 / deg;
+                let kd_max = 2.0 * 0.45 * (2.0 - 0.45) / (2.0 + 0.45) * 0.5;
+                let k_lim = kd_max * i1 / (scale.period_s * scale.period_s) * n * n;
+                let k = k.min(k_lim);
+                let b = 0.45 * i1 / scale.period_s * n * n;
+                Scenario {
+                    kind,
+                    scale,
+                    mode: Mode::PositionPdColocated,
+                    gains: GainSet { stiffness: k, damping: b, ..base },
+                    target: Target::Position,
+                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    rate_hz: 100.0,
+                    duration_s: 3.0,
+                    desired: k,
+                    crank_speed: 0.0,
+                    crank_period: 0.0,
+                    wall: None,
+                }
+            }
+        };
+        if s.scale.gear_ratio.is_nan() || s.scale.gear_ratio <= 0.0 {
+            bail!("model has no gear ratio");
+        }
+        Ok(s)
+    }
+
+    /// What the output touches at time `t` (s since the run began).
+    pub fn environment(&self, t: f64) -> Environment {
+        let ts = t - SETTLE_S;
+        match self.kind {
+            ScenarioKind::Stiffness if ts > 0.0 => {
+                // triangle: +speed for a quarter period, −speed for half, +speed again
+                let ph = (ts / self.crank_period).fract();
+                let sign = if !(0.25..0.75).contains(&ph) { 1.0 } else { -1.0 };
+                Environment::Crank { speed: sign * self.crank_speed }
+            }
+            ScenarioKind::Damper if ts > 0.0 => {
+                let speeds = [0.05, -0.05, 0.1, -0.1, 0.2, -0.2];
+                let i = ((ts / 1.0) as usize).min(speeds.len() - 1);
+                Environment::Crank { speed: speeds[i] }
+            }
+            ScenarioKind::Wall => self.wall.unwrap_or(Environment::Free),
+            _ => Environment::Free,
+        }
+    }
+
+    /// Ticks to run: settling + streaming + a little margin.
+    pub fn ticks(&self) -> u64 {
+        ((SETTLE_S + self.duration_s) * 1000.0).round() as u64
+    }
+}

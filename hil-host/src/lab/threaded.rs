@@ -1,0 +1,246 @@
+//! The nodes as loops over their own bus handle: threads in one process (`hil-host run`) or
+//! separate processes (`hil-host card|plant|supervise`) on SocketCAN.
+//!
+//! Time: in lockstep the plant paces everything (sensor frame k → actuator k → integrate),
+//! the card's clock is its tick count and the supervisor counts `Sensor` frames, so the
+//! control behaviour does not depend on wall time or scheduling. In real time the plant ticks
+//! from a 1 kHz wall clock and reports late/missing actuator frames and period jitter.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Result};
+use controller::proto::{Kind, Message, NodeId};
+
+use crate::bus::{BusError, CanBus, ClassicFrame};
+
+use super::card_node::{kind_of, CardNode};
+use super::plant_node::PlantNode;
+use super::recorder::Recorder;
+use super::scenario::Scenario;
+use super::supervisor::{Phase, Supervisor};
+
+/// How the plant paces ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Clock {
+    /// Wait for each actuator frame (at most `timeout`), then integrate.
+    Lockstep {
+        /// Give up on one actuator frame after this long and count it missing.
+        timeout: Duration,
+    },
+    /// A 1 kHz wall-clock tick.
+    RealTime,
+}
+
+/// What the plant loop measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PlantStats {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Actuator frames that never came within their tick.
+    pub missing: u64,
+    /// Actuator frames that answered an older tick.
+    pub stale: u64,
+    /// Wall time of the loop.
+    pub wall: Duration,
+    /// Real time only: tick-start lateness percentiles (p50, p99, max), µs.
+    pub jitter_us: Option<(f64, f64, f64)>,
+    /// Frames seen on the bus and their exact/worst-case bit counts.
+    pub frames: u64,
+    /// Sum of exact bit lengths of the frames seen plus the node's own.
+    pub exact_bits: u64,
+    /// Worst-case bit sum.
+    pub worst_bits: u64,
+}
+
+impl PlantStats {
+    /// Lockstep cycles per wall second.
+    pub fn cycles_per_second(&self) -> f64 {
+        self.ticks as f64 / self.wall.as_secs_f64().max(1e-9)
+    }
+    /// Bus load over simulated time (ticks × 1 ms) at 1 Mbit/s, (exact, worst-case).
+    pub fn bus_load(&self) -> (f64, f64) {
+        let bits = super::BITRATE as f64 * self.ticks as f64 * 1e-3;
+        (self.exact_bits as f64 / bits.max(1.0), self.worst_bits as f64 / bits.max(1.0))
+    }
+}
+
+fn account(stats: &mut PlantStats, f: &ClassicFrame) {
+    stats.frames += 1;
+    stats.exact_bits += u64::from(crate::bus::bits::exact_bits(f));
+    stats.worst_bits += u64::from(crate::bus::bits::worst_case_bits_of(f));
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let i = ((v.len() - 1) as f64 * q).round() as usize;
+    v[i.min(v.len() - 1)]
+}
+
+/// The plant loop: `ticks` ticks (or until `stop`), recording everything it sees.
+#[allow(clippy::too_many_arguments)]
+pub fn run_plant(
+    bus: &mut dyn CanBus,
+    plant: &mut PlantNode,
+    scenario: Option<&Scenario>,
+    recorder: &mut Recorder,
+    clock: Clock,
+    ticks: u64,
+    stop: &AtomicBool,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<PlantStats> {
+    let mut st = PlantStats::default();
+    let t_start = Instant::now();
+    let mut lateness = Vec::new();
+    while st.ticks < ticks && !stop.load(Ordering::Relaxed) {
+        let k = st.ticks + 1;
+        let t = k as f64 * 1e-3;
+        if let Some(sc) = scenario {
+            let env = sc.environment(t);
+            if env != plant.plant().environment() {
+                plant.plant_mut().set_environment(env)?;
+            }
+        }
+        let deadline = match clock {
+            Clock::RealTime => {
+                let due = t_start + Duration::from_micros(k * 1000);
+                let now = Instant::now();
+                if due > now {
+                    std::thread::sleep(due - now);
+                }
+                lateness.push(Instant::now().saturating_duration_since(due).as_secs_f64() * 1e6);
+                due + Duration::from_micros(1000)
+            }
+            Clock::Lockstep { timeout } => Instant::now() + timeout,
+        };
+        for f in plant.sensor_frames() {
+            bus.send(&f)?;
+            account(&mut st, &f);
+            recorder.observe(t, &f)?;
+        }
+        loop {
+            let now = Instant::now();
+            if now >= deadline {
+                break;
+            }
+            match bus.recv_timeout(deadline - now) {
+                Ok(Some(f)) => {
+                    account(&mut st, &f);
+                    recorder.observe(t, &f)?;
+                    if plant.on_frame(&f).is_some() && matches!(clock, Clock::Lockstep { .. }) {
+                        break;
+                    }
+                }
+                Ok(None) => break,
+                Err(BusError::Fault { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            }
+        }
+        recorder.tick(t, plant)?;
+        plant.advance();
+        st.ticks = k;
+        if k.is_multiple_of(100) {
+            progress(k, ticks);
+        }
+    }
+    st.missing = plant.missing;
+    st.stale = plant.stale;
+    st.wall = t_start.elapsed();
+    if clock == Clock::RealTime {
+        st.jitter_us = Some((
+            percentile(&mut lateness, 0.5),
+            percentile(&mut lateness, 0.99),
+            lateness.iter().cloned().fold(0.0, f64::max),
+        ));
+    }
+    recorder.flush()?;
+    Ok(st)
+}
+
+/// The card loop: runs until `stop`. In lockstep the card's time is its tick count; when no
+/// sensor frame arrives for a while (a dead plant), wall time since the last one is added so
+/// the sensor timeout still fires.
+pub fn run_card(bus: &mut dyn CanBus, card: &mut CardNode, lockstep: bool, stop: &AtomicBool) -> Result<()> {
+    let t0 = Instant::now();
+    let mut last_rx = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        let wall_us = t0.elapsed().as_micros() as u64;
+        match bus.recv_timeout(Duration::from_millis(2)) {
+            Ok(Some(f)) => {
+                if kind_of(&f) == Some(Kind::Sensor as u16) {
+                    last_rx = Instant::now();
+                }
+                let out = card.on_frame(wall_us, &f);
+                for g in out.frames {
+                    bus.send(&g)?;
+                }
+            }
+            Ok(None) => {
+                let now = if lockstep {
+                    card.now_us() + last_rx.elapsed().as_micros() as u64
+                } else {
+                    wall_us
+                };
+                let out = card.on_idle(now);
+                for g in out.frames {
+                    bus.send(&g)?;
+                }
+            }
+            Err(BusError::Fault { fault, .. }) => {
+                for g in card.on_bus_fault(&fault).frames {
+                    let _ = bus.send(&g);
+                }
+            }
+            Err(e) => {
+                // The bus itself failed: the card can no longer be commanded; it stops.
+                return Err(anyhow!("card bus failed: {e}"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The supervisor loop: one `on_tick` per `Sensor` frame seen for its node, until the
+/// script ends (plus `linger` ticks) or `stop`. `die_after`: stop sending after that many
+/// ticks (watchdog demonstrations).
+pub fn run_supervisor(
+    bus: &mut dyn CanBus,
+    sup: &mut Supervisor,
+    node: NodeId,
+    stop: &AtomicBool,
+    linger: u64,
+    mut on_tick: impl FnMut(u64, &Supervisor),
+) -> Result<u64> {
+    let mut tick = 0u64;
+    let mut stopped_at = None;
+    let sensor_id = u32::from(controller::proto::id::compose(Kind::Sensor, node));
+    while !stop.load(Ordering::Relaxed) {
+        match bus.recv_timeout(Duration::from_millis(50)) {
+            Ok(Some(f)) => {
+                if !f.is_extended() && f.raw_id() == sensor_id {
+                    tick += 1;
+                    for m in sup.on_tick(tick) {
+                        let g: ClassicFrame = m.encode(node).map_err(|e| anyhow!("encode: {e:?}"))?;
+                        bus.send(&g)?;
+                    }
+                    on_tick(tick, sup);
+                    if sup.phase() == Phase::Stopped {
+                        let s = *stopped_at.get_or_insert(tick);
+                        if tick >= s + linger {
+                            break;
+                        }
+                    }
+                } else if let Ok((n, m)) = Message::decode(&f) {
+                    sup.on_message(n, &m);
+                }
+            }
+            Ok(None) => {}
+            Err(BusError::Fault { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(tick)
+}
