@@ -3,9 +3,7 @@
 //! values), so a change on one side without the other fails CI.
 
 use controller::proto::params::{self, ParamDef};
-use controller::proto::{
-    Command, FaultCode, Kind, LimitFlags, Mode, ParamStatus, ReplyTo, State,
-};
+use controller::proto::{Command, FaultCode, Kind, LimitFlags, Mode, ParamStatus, ReplyTo, State};
 use std::collections::BTreeSet;
 
 fn spec() -> String {
@@ -34,7 +32,10 @@ fn section(doc: &str, title: &str) -> Vec<String> {
             out.push(line.to_string());
         }
     }
-    assert!(level.is_some(), "section `{title}` not found in docs/protocol.md");
+    assert!(
+        level.is_some(),
+        "section `{title}` not found in docs/protocol.md"
+    );
     out
 }
 
@@ -74,7 +75,8 @@ fn parameter_table_in_spec_matches_codec() {
         // The group overview table has 2 columns; parameter rows have 7.
         .filter(|c| c.len() == 7)
         .collect();
-    let in_code: BTreeSet<Vec<String>> = params::TABLE.iter().map(|d| cells(&param_row(d))).collect();
+    let in_code: BTreeSet<Vec<String>> =
+        params::TABLE.iter().map(|d| cells(&param_row(d))).collect();
     let missing: Vec<_> = in_code.difference(&in_doc).collect();
     let extra: Vec<_> = in_doc.difference(&in_code).collect();
     if !missing.is_empty() || !extra.is_empty() {
@@ -99,7 +101,10 @@ fn message_table_in_spec_matches_kinds() {
         }
         let Ok(k) = c[0].parse::<u8>() else { continue };
         let Some(kind) = Kind::from_u8(k) else {
-            assert!(c[1].starts_with("reserved"), "kind {k} in spec is not a codec kind: {l}");
+            assert!(
+                c[1].starts_with("reserved"),
+                "kind {k} in spec is not a codec kind: {l}"
+            );
             continue;
         };
         assert_eq!(c[1], kind.name(), "kind {k} name");
@@ -141,7 +146,10 @@ fn enum_tables_in_spec_match_codec() {
     check_enum("Command", &c);
     let r: Vec<_> = ReplyTo::ALL.iter().map(|s| (s.as_u8(), s.name())).collect();
     check_enum("ReplyTo", &r);
-    let p: Vec<_> = ParamStatus::ALL.iter().map(|s| (s.as_u8(), s.name())).collect();
+    let p: Vec<_> = ParamStatus::ALL
+        .iter()
+        .map(|s| (s.as_u8(), s.name()))
+        .collect();
     check_enum("ParamStatus", &p);
     let l: Vec<_> = LimitFlags::NAMED
         .iter()
@@ -149,4 +157,3 @@ fn enum_tables_in_spec_match_codec() {
         .collect();
     check_enum("LimitFlags", &l);
 }
-
