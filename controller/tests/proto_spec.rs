@@ -157,3 +157,140 @@ fn enum_tables_in_spec_match_codec() {
         .collect();
     check_enum("LimitFlags", &l);
 }
+
+fn dbc() -> String {
+    let p = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/jointlab.dbc");
+    std::fs::read_to_string(p).unwrap_or_else(|e| panic!("reading {p}: {e}"))
+}
+
+#[test]
+fn dbc_messages_match_kinds_ids_and_lengths() {
+    let mut seen = BTreeSet::new();
+    for line in dbc().lines() {
+        let Some(rest) = line.strip_prefix("BO_ ") else {
+            continue;
+        };
+        // BO_ <id> <Name>: <dlc> <sender>
+        let t: Vec<&str> = rest.split_whitespace().collect();
+        let id: u16 = t[0].parse().expect("BO_ id");
+        let name = t[1].trim_end_matches(':');
+        let dlc: usize = t[2].parse().expect("BO_ dlc");
+        let kind = Kind::from_name(name).unwrap_or_else(|| panic!("DBC message {name} is no kind"));
+        assert_eq!(
+            id,
+            controller::proto::id::compose(kind, controller::proto::NodeId::new(1).unwrap()),
+            "{name} id"
+        );
+        assert_eq!(dlc, kind.dlc(), "{name} length");
+        seen.insert(kind);
+    }
+    assert_eq!(seen.len(), Kind::ALL.len(), "every kind must be in the DBC");
+}
+
+#[test]
+fn dbc_value_tables_match_enums() {
+    let id_of = |k: Kind| u16::from(k.as_u8()) << 7 | 1;
+    let mut tables = std::collections::BTreeMap::new();
+    for line in dbc().lines() {
+        let Some(rest) = line.strip_prefix("VAL_ ") else {
+            continue;
+        };
+        let rest = rest.trim_end_matches(';').trim();
+        let mut it = rest.splitn(3, ' ');
+        let id: u16 = it.next().unwrap().parse().unwrap();
+        let sig = it.next().unwrap().to_string();
+        let body = it.next().unwrap();
+        // pairs: <n> "<name>"
+        let mut pairs = Vec::new();
+        let mut s = body.trim();
+        while !s.is_empty() {
+            let (num, r) = s.split_once(' ').unwrap();
+            let r = r.trim_start().strip_prefix('"').unwrap();
+            let (name, r) = r.split_once('"').unwrap();
+            pairs.push((num.parse::<u8>().unwrap(), name.to_string()));
+            s = r.trim();
+        }
+        pairs.sort();
+        tables.insert((id, sig), pairs);
+    }
+    let with_none = |v: Vec<(u8, &str)>| {
+        let mut out = vec![(0u8, "None".to_string())];
+        out.extend(v.into_iter().map(|(a, b)| (a, b.to_string())));
+        out
+    };
+    let plain = |v: Vec<(u8, &str)>| {
+        v.into_iter()
+            .map(|(a, b)| (a, b.to_string()))
+            .collect::<Vec<_>>()
+    };
+    let modes: Vec<_> = Mode::ALL.iter().map(|m| (m.as_u8(), m.name())).collect();
+    let faults: Vec<_> = FaultCode::ALL
+        .iter()
+        .map(|m| (m.as_u8(), m.name()))
+        .collect();
+    let expect = [
+        ((Kind::Fault, "code"), plain(faults.clone())),
+        (
+            (Kind::ControlWord, "command"),
+            plain(Command::ALL.iter().map(|m| (m.as_u8(), m.name())).collect()),
+        ),
+        ((Kind::ControlWord, "mode"), with_none(modes.clone())),
+        (
+            (Kind::ParamResponse, "reply_to"),
+            plain(ReplyTo::ALL.iter().map(|m| (m.as_u8(), m.name())).collect()),
+        ),
+        (
+            (Kind::ParamResponse, "status"),
+            plain(
+                ParamStatus::ALL
+                    .iter()
+                    .map(|m| (m.as_u8(), m.name()))
+                    .collect(),
+            ),
+        ),
+        (
+            (Kind::Heartbeat, "state"),
+            plain(State::ALL.iter().map(|m| (m.as_u8(), m.name())).collect()),
+        ),
+        ((Kind::Heartbeat, "mode"), with_none(modes)),
+        ((Kind::Heartbeat, "fault"), with_none(faults)),
+    ];
+    assert_eq!(
+        tables.len(),
+        expect.len(),
+        "unexpected VAL_ tables: {:?}",
+        tables.keys()
+    );
+    for ((kind, sig), want) in expect {
+        let got = tables
+            .get(&(id_of(kind), sig.to_string()))
+            .unwrap_or_else(|| panic!("no VAL_ table for {}.{sig}", kind.name()));
+        assert_eq!(got, &want, "VAL_ {}.{sig}", kind.name());
+    }
+}
+
+#[test]
+fn bus_load_figures_in_spec_hold() {
+    // The 40 % budget: Sensor + Actuator + one telemetry frame (worst page) per 1 ms tick.
+    let telemetry = Kind::TelemetryMotion
+        .worst_case_bits()
+        .max(Kind::TelemetryTorque.worst_case_bits());
+    let per_ms = Kind::Sensor.worst_case_bits() + Kind::Actuator.worst_case_bits() + telemetry;
+    assert_eq!(per_ms, 355);
+    assert!(
+        per_ms * 100 <= 40 * 1000,
+        "{per_ms} bits/ms exceeds 40 % of 1 Mbit/s"
+    );
+    // With the output encoder, divider 2 (telemetry every other tick) stays under 40 %.
+    let with_enc_x2 = 2 * (per_ms - telemetry + Kind::OutputEncoder.worst_case_bits()) + telemetry;
+    assert_eq!(with_enc_x2, 795); // per 2 ms: 397.5 bits/ms
+    assert!(with_enc_x2 * 100 <= 40 * 2000);
+    let doc = spec();
+    assert!(
+        doc.contains("**355 → 35.5 %**"),
+        "protocol.md bus-load figure out of date"
+    );
+    assert_eq!(Kind::Sensor.worst_case_bits(), 135);
+    // Three 8-byte frames would not fit: the reason telemetry alternates.
+    assert!(3 * 135 * 100 > 40 * 1000);
+}

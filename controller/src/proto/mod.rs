@@ -67,6 +67,40 @@ pub const PROTOCOL_VERSION: u8 = 1;
 /// Largest data length of any message (classic CAN).
 pub const MAX_LEN: usize = 8;
 
+impl Kind {
+    /// The exact data length (DLC) of this kind; any other length is rejected.
+    pub const fn dlc(self) -> usize {
+        match self {
+            Kind::Fault => fault::LEN,
+            Kind::OutputEncoder => output_encoder::LEN,
+            Kind::Sensor => sensor::LEN,
+            Kind::Actuator => actuator::LEN,
+            Kind::SetpointMotion => setpoint_motion::LEN,
+            Kind::SetpointForce => setpoint_force::LEN,
+            Kind::ControlWord => control_word::LEN,
+            Kind::TelemetryMotion => telemetry_motion::LEN,
+            Kind::TelemetryTorque => telemetry_torque::LEN,
+            Kind::ParamWrite => param_write::LEN,
+            Kind::ParamCommit => param_commit::LEN,
+            Kind::ParamRead => param_read::LEN,
+            Kind::ParamResponse => param_response::LEN,
+            Kind::Heartbeat => heartbeat::LEN,
+        }
+    }
+
+    /// Worst-case bits on the bus of one frame of this kind, stuff bits included:
+    /// `47 + 8n + ⌊(34 + 8n − 1) / 4⌋` (see `docs/protocol.md` § Bus load).
+    pub const fn worst_case_bits(self) -> u32 {
+        let data_bits = (self.dlc() as u32).saturating_mul(8);
+        // Stuffable region is 34 + 8n bits; one stuff bit per 4 after the first.
+        let stuff = match 33u32.saturating_add(data_bits).checked_div(4) {
+            Some(v) => v,
+            None => 0,
+        };
+        47u32.saturating_add(data_bits).saturating_add(stuff)
+    }
+}
+
 /// Any protocol message, decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
