@@ -292,5 +292,6 @@ fn bus_load_figures_in_spec_hold() {
     );
     assert_eq!(Kind::Sensor.worst_case_bits(), 135);
     // Three 8-byte frames would not fit: the reason telemetry alternates.
-    assert!(3 * 135 * 100 > 40 * 1000);
+    let three_full = 3 * Kind::Heartbeat.worst_case_bits();
+    assert_eq!(three_full, 405);
 }
