@@ -347,3 +347,33 @@ fn decoder_errors_are_counted_end_to_end() {
     assert_eq!((c.length, c.unknown_kind, c.broadcast), (1, 1, 1));
     assert_eq!(c.malformed_total(), 3);
 }
+
+#[test]
+fn cards_act_on_to_card_frames_for_their_node_or_broadcast() {
+    use controller::proto::Direction;
+    let me = NodeId::new(3).expect("node");
+    let other = NodeId::new(4).expect("node");
+    assert!(Message::is_for(me, Kind::Sensor, me));
+    assert!(!Message::is_for(other, Kind::Sensor, me));
+    assert!(Message::is_for(NodeId::BROADCAST, Kind::ControlWord, me));
+    // Another card's output with our node number is still not for us (e.g. a heartbeat).
+    assert!(!Message::is_for(me, Kind::Heartbeat, me));
+    let to_card: Vec<_> = Kind::ALL
+        .iter()
+        .filter(|k| k.direction() == Direction::ToCard)
+        .map(|k| k.name())
+        .collect();
+    assert_eq!(
+        to_card,
+        [
+            "OutputEncoder",
+            "Sensor",
+            "SetpointMotion",
+            "SetpointForce",
+            "ControlWord",
+            "ParamWrite",
+            "ParamCommit",
+            "ParamRead"
+        ]
+    );
+}

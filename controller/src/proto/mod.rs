@@ -40,7 +40,7 @@ pub use checksum::{Crc32, SetChecksum};
 pub use control_word::Command;
 pub use error::{DecodeError, Error, RejectCounters};
 pub use frame::RawFrame;
-pub use id::{Kind, NodeId};
+pub use id::{Direction, Kind, NodeId};
 pub use param_response::{ParamStatus, ReplyTo};
 pub use state::{FaultCode, LimitFlags, Mode, State};
 
@@ -263,6 +263,13 @@ impl Message {
             Ok(_) => Err(Error::Unencodable { kind }),
             Err(e) => Err(e),
         }
+    }
+
+    /// True if a card with node `me` should act on this frame: a to-card kind addressed to
+    /// `me` or broadcast. (Frames for other nodes, and every card's own output kinds, are
+    /// simply not for it — that is not a rejection and is not counted.)
+    pub fn is_for(node: NodeId, kind: Kind, me: NodeId) -> bool {
+        kind.direction() == Direction::ToCard && (node == me || node.is_broadcast())
     }
 
     /// Builds a frame for `node` (see [`Message::to_bytes`] for the validation).
