@@ -32,6 +32,7 @@ pub mod scale;
 pub mod sensor;
 pub mod setpoint_force;
 pub mod setpoint_motion;
+pub mod staging;
 pub mod state;
 pub mod telemetry_motion;
 pub mod telemetry_torque;
