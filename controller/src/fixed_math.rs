@@ -218,7 +218,7 @@ pub fn to_command(tau: Torque) -> (TorqueCmd, bool) {
 }
 
 /// A first-order low-pass `y += α(u − y)` in Q16 of its input unit. α is a `U1F15` fraction
-/// in (0, 1]. Used for force-rate filtering and impedance compensation (notes §2.3, §2.12:
+/// in (0, 1] (larger values are treated as 1). Used for force-rate filtering and impedance compensation (notes §2.3, §2.12:
 /// the thesis used digital differentiation plus low-pass filtering).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -237,17 +237,16 @@ impl LowPass {
     pub fn reset(&mut self, y: i32) {
         self.y_q16 = i64::from(y).wrapping_shl(16);
     }
-    /// One step; returns the filtered value rounded to input units.
+    /// One step; returns the filtered value rounded to input units. α is limited to 1.0
+    /// (its documented range): then |u − y| < 2³² LSB = 2⁴⁸ in Q16, × α ≤ 2¹⁵ stays < 2⁶³,
+    /// and y remains a convex combination of past inputs (|y| ≤ 2³¹).
     #[inline]
     pub fn step(&mut self, u: i32, alpha: Alpha) -> i32 {
-        // |u|,|y| < 2³¹ ⇒ diff < 2⁴⁸ (Q16); × α (< 2¹⁶) < 2⁶⁴ — too close, so clamp diff to 2⁴⁶.
         let u_q16 = i64::from(u).wrapping_shl(16);
-        let diff = u_q16
-            .saturating_sub(self.y_q16)
-            .clamp(-(1i64 << 46), 1i64 << 46);
-        let a = i64::from(alpha.to_bits());
+        let diff = u_q16.wrapping_sub(self.y_q16);
+        let a = i64::from(alpha.to_bits().min(1 << 15));
         let inc = round_shr(diff.wrapping_mul(a), 15);
-        self.y_q16 = self.y_q16.saturating_add(inc);
+        self.y_q16 = self.y_q16.wrapping_add(inc);
         sat_i32(round_shr(self.y_q16, 16)).0
     }
     /// Current value in input units.
