@@ -22,7 +22,10 @@ fn stiffness_and_damping_scale() {
     let b = damping_gain(&s, Feedback::Colocated, "be", 1.0).unwrap();
     assert!((b.to_f64() / (want / 16.0) - 1.0).abs() < 1e-9);
     // non-colocated: output encoder, motor delivers 1/N
-    let sn = Scale { output_cpr: 1 << 16, ..s };
+    let sn = Scale {
+        output_cpr: 1 << 16,
+        ..s
+    };
     let g = stiffness_gain(&sn, Feedback::NonColocated, "ke", 30.0).unwrap();
     let want = TAU / 65536.0 / TORQUE_LSB_NM;
     assert!((g.to_f64() / want - 1.0).abs() < 1e-9);
@@ -60,24 +63,70 @@ fn thesis_gain_scaling_rule() {
 #[test]
 fn typed_errors() {
     let s = s2304();
-    assert!(matches!(gain_from_f64("x", 3e9), Err(UnitsError::Overflow { what: "x", .. })));
-    assert!(matches!(gain_from_f64("x", 1e-30), Err(UnitsError::RoundsToZero { what: "x", .. })));
-    assert!(matches!(gain_from_f64("x", f64::NAN), Err(UnitsError::NotFinite { what: "x" })));
+    assert!(matches!(
+        gain_from_f64("x", 3e9),
+        Err(UnitsError::Overflow { what: "x", .. })
+    ));
+    assert!(matches!(
+        gain_from_f64("x", 1e-30),
+        Err(UnitsError::RoundsToZero { what: "x", .. })
+    ));
+    assert!(matches!(
+        gain_from_f64("x", f64::NAN),
+        Err(UnitsError::NotFinite { what: "x" })
+    ));
     assert_eq!(gain_from_f64("x", 0.0), Ok(Gain::ZERO));
-    assert!(matches!(torque_limit("tau_max", 3.3), Err(UnitsError::Overflow { what: "tau_max", .. })));
-    assert!(matches!(torque_limit("tau_max", -1.0), Err(UnitsError::OutOfRange { what: "tau_max" })));
+    assert!(matches!(
+        torque_limit("tau_max", 3.3),
+        Err(UnitsError::Overflow {
+            what: "tau_max",
+            ..
+        })
+    ));
+    assert!(matches!(
+        torque_limit("tau_max", -1.0),
+        Err(UnitsError::OutOfRange { what: "tau_max" })
+    ));
     let bad = Scale { motor_cpr: 0, ..s };
     assert!(matches!(
         stiffness_gain(&bad, Feedback::Colocated, "ke", 1.0),
         Err(UnitsError::BadScale { what: "motor_cpr" })
     ));
-    let imp = ImpedanceSi { ke: 1.0, be: 0.01, km: 1.0, tau_max_nm: 1.0, feedback: Feedback::Colocated };
-    assert_eq!(impedance_config(&s, &imp), Err(UnitsError::OutOfRange { what: "km" }));
-    assert!(impedance_config(&s, &ImpedanceSi { km: km_from_inertia(2.0, 1.0), ..imp }).is_ok());
-    assert_eq!(ripple_table(128, &[0.0; 65]).unwrap_err(), UnitsError::Ripple(RippleError::Length));
-    assert_eq!(ripple_table(10, &[0.0; 11]).unwrap_err(), UnitsError::Ripple(RippleError::Period));
-    assert!(matches!(ripple_table(128, &[0.0, 4.0]), Err(UnitsError::Overflow { what: "ripple", .. })));
-    assert_eq!(observer_config(&s, 400.0, 1.0, 100), Err(UnitsError::Observer));
+    let imp = ImpedanceSi {
+        ke: 1.0,
+        be: 0.01,
+        km: 1.0,
+        tau_max_nm: 1.0,
+        feedback: Feedback::Colocated,
+    };
+    assert_eq!(
+        impedance_config(&s, &imp),
+        Err(UnitsError::OutOfRange { what: "km" })
+    );
+    assert!(impedance_config(
+        &s,
+        &ImpedanceSi {
+            km: km_from_inertia(2.0, 1.0),
+            ..imp
+        }
+    )
+    .is_ok());
+    assert_eq!(
+        ripple_table(128, &[0.0; 65]).unwrap_err(),
+        UnitsError::Ripple(RippleError::Length)
+    );
+    assert_eq!(
+        ripple_table(10, &[0.0; 11]).unwrap_err(),
+        UnitsError::Ripple(RippleError::Period)
+    );
+    assert!(matches!(
+        ripple_table(128, &[0.0, 4.0]),
+        Err(UnitsError::Overflow { what: "ripple", .. })
+    ));
+    assert_eq!(
+        observer_config(&s, 400.0, 1.0, 100),
+        Err(UnitsError::Observer)
+    );
     let fr = FrictionSi {
         tau_c_pos: 0.1,
         tau_c_neg: -0.1,
@@ -86,10 +135,23 @@ fn typed_errors() {
         undercomp: 0.8,
         limit_nm: 1.0,
     };
-    assert_eq!(friction_config(&s, &fr), Err(UnitsError::OutOfRange { what: "tau_c_neg" }));
-    assert!(friction_config(&s, &FrictionSi { tau_c_neg: 0.1, ..fr }).is_ok());
+    assert_eq!(
+        friction_config(&s, &fr),
+        Err(UnitsError::OutOfRange { what: "tau_c_neg" })
+    );
+    assert!(friction_config(
+        &s,
+        &FrictionSi {
+            tau_c_neg: 0.1,
+            ..fr
+        }
+    )
+    .is_ok());
     // a stiffness so small at a fine encoder that it rounds to zero is refused, not zeroed
-    let fine = Scale { motor_cpr: u32::MAX, ..s };
+    let fine = Scale {
+        motor_cpr: u32::MAX,
+        ..s
+    };
     assert!(matches!(
         stiffness_gain(&fine, Feedback::Colocated, "ke", 1e-25),
         Err(UnitsError::RoundsToZero { what: "ke", .. })
@@ -139,16 +201,31 @@ fn guard_thesis_numbers() {
         DEFAULT_MARGIN * 100.0
     );
     assert!((ok.kp_max - 0.686).abs() < 0.001);
-    assert_eq!(pd_stability(0.81 * ke_max, be, i, t, DEFAULT_MARGIN), Err(StabilityError::TooStiff));
+    assert_eq!(
+        pd_stability(0.81 * ke_max, be, i, t, DEFAULT_MARGIN),
+        Err(StabilityError::TooStiff)
+    );
     // without margin the theoretical bound itself
     assert!(pd_stability(0.99 * ke_max, be, i, t, 0.0).is_ok());
     // 68 N·m/deg output through 10:1 ≈ 39 N·m/rad motor: refused (the KAMO limit cycles)
     let k = motor_gain_from_output(68.0 * 360.0 / TAU, 10.0);
     println!("[units] 68 N·m/deg @10:1 = {k:.1} N·m/rad at the motor");
-    assert_eq!(pd_stability(k, be, i, t, DEFAULT_MARGIN), Err(StabilityError::TooStiff));
-    assert_eq!(pd_stability(1.0, 0.0, i, t, DEFAULT_MARGIN), Err(StabilityError::NoDamping));
-    assert_eq!(pd_stability(1.0, 1.7 * i / t, i, t, DEFAULT_MARGIN), Err(StabilityError::TooMuchDamping));
-    assert_eq!(pd_stability(-1.0, be, i, t, DEFAULT_MARGIN), Err(StabilityError::NegativeStiffness));
+    assert_eq!(
+        pd_stability(k, be, i, t, DEFAULT_MARGIN),
+        Err(StabilityError::TooStiff)
+    );
+    assert_eq!(
+        pd_stability(1.0, 0.0, i, t, DEFAULT_MARGIN),
+        Err(StabilityError::NoDamping)
+    );
+    assert_eq!(
+        pd_stability(1.0, 1.7 * i / t, i, t, DEFAULT_MARGIN),
+        Err(StabilityError::TooMuchDamping)
+    );
+    assert_eq!(
+        pd_stability(-1.0, be, i, t, DEFAULT_MARGIN),
+        Err(StabilityError::NegativeStiffness)
+    );
     // damper mode (Ke = 0) is accepted
     assert!(pd_stability(0.0, be, i, t, DEFAULT_MARGIN).is_ok());
 }
@@ -215,11 +292,20 @@ fn integer_guard_edge_cases() {
     let ke_ok = stiffness_gain(&s, Feedback::Colocated, "ke", 5.0).unwrap();
     let ke_bad = stiffness_gain(&s, Feedback::Colocated, "ke", 6.0).unwrap();
     assert_eq!(pd_stability_int(ke_ok, be, j, 1000, 20), Ok(()));
-    assert_eq!(pd_stability_int(ke_bad, be, j, 1000, 20), Err(StabilityError::TooStiff));
+    assert_eq!(
+        pd_stability_int(ke_bad, be, j, 1000, 20),
+        Err(StabilityError::TooStiff)
+    );
     assert_eq!(pd_stability_int(ke_bad, be, j, 1000, 0), Ok(()));
-    assert_eq!(pd_stability_int(ke_ok, Gain::ZERO, j, 1000, 20), Err(StabilityError::NoDamping));
+    assert_eq!(
+        pd_stability_int(ke_ok, Gain::ZERO, j, 1000, 20),
+        Err(StabilityError::NoDamping)
+    );
     assert_eq!(pd_stability_int(Gain::ZERO, be, j, 1000, 20), Ok(()));
-    assert_eq!(pd_stability_int(ke_ok, be, Gain::ZERO, 1000, 20), Err(StabilityError::BadInput));
+    assert_eq!(
+        pd_stability_int(ke_ok, be, Gain::ZERO, 1000, 20),
+        Err(StabilityError::BadInput)
+    );
     // extreme gains never panic
     for m in [1, i32::MAX, -1, i32::MIN] {
         for sh in [0u8, 31, 62] {
