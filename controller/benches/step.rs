@@ -28,7 +28,7 @@ fn joint_cfg() -> JointConfig {
     )
     .unwrap();
     let tab: Vec<f64> = (0..64)
-        .map(|i| 0.03 * (6.283 * i as f64 / 64.0).sin())
+        .map(|i| 0.03 * (std::f64::consts::TAU * i as f64 / 64.0).sin())
         .collect();
     JointConfig {
         mode: Mode::Position(pos),
@@ -90,9 +90,9 @@ fn samples() -> Vec<(Setpoint, Measurements)> {
 
 fn pid_f32() -> ::pid::Pid<f32> {
     let mut p = ::pid::Pid::new(0.0f32, 2.0);
-    p.p(0.4f32 * 6.283 / 2304.0, 2.0)
-        .i(5.0f32 * 6.283 / 2304.0 * 1e-3, 1.0)
-        .d(0.009f32 * 6.283 / 2304.0 / 1e-3, 2.0);
+    p.p(0.4f32 * std::f32::consts::TAU / 2304.0, 2.0)
+        .i(5.0f32 * std::f32::consts::TAU / 2304.0 * 1e-3, 1.0)
+        .d(0.009f32 * std::f32::consts::TAU / 2304.0 / 1e-3, 2.0);
     p
 }
 
