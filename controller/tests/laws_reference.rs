@@ -155,10 +155,10 @@ fn pos_err(a: i64, b: i64) -> f64 {
 // ------------------------------------------------------------------------------------------
 // proptests: fixed vs f64
 
-fn run<S: Strategy>(strat: &S, f: impl Fn(S::Value) -> Result<(), TestCaseError>) {
+fn run<S: Strategy>(cases: u32, strat: &S, f: impl Fn(S::Value) -> Result<(), TestCaseError>) {
     use proptest::test_runner::{Config, TestRunner};
     let mut runner = TestRunner::new(Config {
-        cases: 2000,
+        cases,
         failure_persistence: None,
         ..Config::default()
     });
@@ -182,6 +182,7 @@ const NAME_W_JOINT: &str = "joint pipeline (sequence)";
 fn pd_tracks_f64() {
     let w = Worst::new(NAME_W_PD);
     run(
+        3000,
         &(
             gain_strat(),
             gain_strat(),
@@ -228,6 +229,7 @@ fn pd_tracks_f64() {
 fn pid_sequence_tracks_f64() {
     let w = Worst::new(NAME_W_PID);
     run(
+        400,
         &(
             gain_strat(),
             gain_strat(),
@@ -264,7 +266,7 @@ fn pid_sequence_tracks_f64() {
 #[test]
 fn damper_tracks_f64() {
     let w = Worst::new(NAME_W_DAMP);
-    run(&(gain_strat(), lim_strat(), i32_strat()), |(b, lim, v)| {
+    run(3000, &(gain_strat(), lim_strat(), i32_strat()), |(b, lim, v)| {
         let c = DamperConfig { b, tau_max: lim };
         let o = DamperLaw.step(&c, Vel::from_bits(v));
         let r = clamp(-g(b) * v as f64, lim);
@@ -282,6 +284,7 @@ fn damper_tracks_f64() {
 fn impedance_tracks_f64() {
     let w = Worst::new(NAME_W_IMP);
     run(
+        3000,
         &(
             gain_strat(),
             gain_strat(),
@@ -315,6 +318,7 @@ fn impedance_tracks_f64() {
 fn force_input_velocity_tracks_f64() {
     let w = Worst::new(NAME_W_FORCE_V);
     run(
+        400,
         &(
             gain_strat(),
             gain_strat(),
@@ -358,6 +362,7 @@ fn force_rate_tracks_f64() {
     let seq_strat =
         prop::collection::vec((-1_000_000i32..1_000_000, -1_000_000i32..1_000_000), 1..200);
     run(
+        400,
         &(
             gain_strat(),
             kd_strat,
@@ -403,6 +408,7 @@ fn force_rate_tracks_f64() {
 fn friction_tracks_f64() {
     let w = Worst::new(NAME_W_FRIC);
     run(
+        3000,
         &(
             0i32..=32767,
             0i32..=32767,
@@ -448,6 +454,7 @@ fn impcomp_tracks_f64() {
         1..200,
     );
     run(
+        400,
         &(
             gain_strat(),
             -(1i32 << 30)..(1i32 << 30),
@@ -485,6 +492,7 @@ fn impcomp_tracks_f64() {
 fn ripple_tracks_f64() {
     let w = Worst::new(NAME_W_RIP);
     run(
+        3000,
         &(
             prop::collection::vec(any::<i16>(), 2..=64),
             0u32..100_000,
@@ -508,6 +516,7 @@ fn ripple_tracks_f64() {
 fn joint_pipeline_tracks_f64() {
     let w = Worst::new(NAME_W_JOINT);
     run(
+        400,
         &(
             gain_strat(),
             gain_strat(),
@@ -602,7 +611,7 @@ fn any_gain() -> impl Strategy<Value = Gain> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 3000, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 1000, failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn extremes_never_panic_and_respect_limits(
@@ -878,7 +887,7 @@ fn bumpless_mode_switches() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 1500, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 1000, failure_persistence: None, ..ProptestConfig::default() })]
     #[test]
     fn bumpless_commit_any_gains(ke1 in 0.0f64..200.0, be1 in 0.0f64..2.0, ki1 in 0.0f64..5000.0,
                                  ke2 in 0.0f64..200.0, be2 in 0.0f64..2.0, ki2 in 0.0f64..5000.0,
