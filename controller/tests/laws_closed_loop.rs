@@ -360,6 +360,70 @@ fn input_velocity_damping_calms_force_p() {
 }
 
 #[test]
+fn force_rate_damping_calms_force_p() {
+    // Thesis §2.3 implementation: D on the force rate by backward difference + low-pass.
+    // Equivalent viscous damping Be·Kf; small Be only (too much destabilises).
+    let kf = 5.0;
+    let kp = 2.0;
+    let wn = (kf * (1.0 + kp) / I_ROT).sqrt();
+    let be_s = 2.0 * 0.5 * wn * I_ROT / kf; // ζ ≈ 0.5 worth of Be·Kf
+    let mut rms = vec![];
+    for (be, cutoff) in [(0.0, 200.0), (be_s, 200.0)] {
+        let mut p = wall_plant(kf);
+        p.b = 2e-5;
+        let mut c = Card::new(2304, 100.0);
+        let damping = if be > 0.0 {
+            units::ForceDampingSi::ForceRate {
+                be_s: be,
+                cutoff_hz: cutoff,
+            }
+        } else {
+            units::ForceDampingSi::None
+        };
+        let f = units::force_config(
+            &scale(),
+            &units::ForceSi {
+                ke: kp,
+                ki: 0.0,
+                damping,
+                i_limit_nm: 0.0,
+                tau_max_nm: 2.0,
+            },
+        )
+        .unwrap();
+        let cfg = JointConfig {
+            mode: Mode::Force(f),
+            tau_max: 20000,
+            ..JointConfig::default()
+        };
+        let sp = Setpoint {
+            x_d: 0,
+            tau_d: 1000,
+        };
+        let fin = 0.1 * kp / (1.0 + kp);
+        let mut s = 0.0;
+        run(
+            &mut p,
+            &mut c,
+            &cfg,
+            400,
+            |_| sp,
+            |k, p, _, _| {
+                if k >= 50 {
+                    s += (p.env_torque() - fin).powi(2)
+                }
+            },
+        );
+        rms.push((s / 350.0).sqrt());
+    }
+    println!(
+        "[closed loop] force P step, RMS(τenv − final) over 50–400 ms: no D {:.5} N·m, force-rate D (Be = {be_s:.2e} s, LPF 200 Hz) {:.5} N·m",
+        rms[0], rms[1]
+    );
+    assert!(rms[1] < rms[0] / 3.0);
+}
+
+#[test]
 fn impedance_achieves_desired_stiffness() {
     let kf = 2.0;
     let ke = 0.5;

@@ -266,17 +266,21 @@ fn pid_sequence_tracks_f64() {
 #[test]
 fn damper_tracks_f64() {
     let w = Worst::new(NAME_W_DAMP);
-    run(3000, &(gain_strat(), lim_strat(), i32_strat()), |(b, lim, v)| {
-        let c = DamperConfig { b, tau_max: lim };
-        let o = DamperLaw.step(&c, Vel::from_bits(v));
-        let r = clamp(-g(b) * v as f64, lim);
-        let err = (o.tau as f64 - r).abs();
-        w.see(err);
-        prop_assert!(err <= 0.5);
-        let idamp = InputDamping { b1e: b }.torque(Vel::from_bits(v));
-        prop_assert!((idamp as f64 + g(b) * v as f64).abs() <= 0.5);
-        Ok(())
-    });
+    run(
+        3000,
+        &(gain_strat(), lim_strat(), i32_strat()),
+        |(b, lim, v)| {
+            let c = DamperConfig { b, tau_max: lim };
+            let o = DamperLaw.step(&c, Vel::from_bits(v));
+            let r = clamp(-g(b) * v as f64, lim);
+            let err = (o.tau as f64 - r).abs();
+            w.see(err);
+            prop_assert!(err <= 0.5);
+            let idamp = InputDamping { b1e: b }.torque(Vel::from_bits(v));
+            prop_assert!((idamp as f64 + g(b) * v as f64).abs() <= 0.5);
+            Ok(())
+        },
+    );
     w.report("0.5");
 }
 
