@@ -185,10 +185,12 @@ pub fn sat_i32(x: i64) -> (i32, bool) {
     }
 }
 
-/// Clamp to `[-lim, +lim]` (lim taken as |lim|); the bool is true if it clamped.
+/// Clamp to `[-lim, +lim]` (lim taken as |lim|, at most `i32::MAX`); the bool is true if it
+/// clamped.
 #[inline]
 pub fn clamp_sym(x: i64, lim: i32) -> (i32, bool) {
-    let l = i64::from(lim).wrapping_abs();
+    // |i32::MIN| is not an i32: treat it as i32::MAX.
+    let l = i64::from(lim).wrapping_abs().min(i64::from(i32::MAX));
     if x > l {
         (l as i32, true)
     } else if x < l.wrapping_neg() {

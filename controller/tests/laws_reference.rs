@@ -784,6 +784,13 @@ fn bumpless_gain_commit_pd_and_pid() {
             k += 1;
         }
         assert_eq!(st.offset, 0, "offset must decay");
+        if let Mode::Position(pc) = b.mode {
+            if !pc.pid.has_integrator() {
+                // after the transfer a PD is exactly the PD: no hidden integrator bias
+                let fresh = JointState::new().step(&b, &sp, &m).out.tau;
+                assert_eq!(st.step(&b, &sp, &m).out.tau, fresh);
+            }
+        }
         println!("[bumpless]   offset decayed in {k} ticks");
     }
 }
