@@ -61,7 +61,7 @@ fn joint_cfg() -> JointConfig {
             )
             .unwrap()
         }),
-        ripple: Some(units::ripple_table(128, &tab).unwrap()),
+        ripple: Some(units::ripple_table(&s, 128, &tab).unwrap()),
         tau_max: 20000,
         transfer_shift: 6,
     }

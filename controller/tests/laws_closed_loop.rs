@@ -546,7 +546,7 @@ fn ripple_comp_cancels_known_ripple() {
             let tab: Vec<f64> = (0..64)
                 .map(|i| -amp * (TAU * i as f64 / 64.0).sin())
                 .collect();
-            cfg.ripple = Some(units::ripple_table(period_counts, &tab).unwrap());
+            cfg.ripple = Some(units::ripple_table(&scale(), period_counts, &tab).unwrap());
         }
         let speed = 0.5; // rad/s: ripple at 1.4 Hz, inside the loop bandwidth
         let mut s = 0.0;

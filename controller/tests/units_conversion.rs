@@ -29,6 +29,26 @@ fn stiffness_and_damping_scale() {
     let g = stiffness_gain(&sn, Feedback::NonColocated, "ke", 30.0).unwrap();
     let want = TAU / 65536.0 / TORQUE_LSB_NM;
     assert!((g.to_f64() / want - 1.0).abs() < 1e-9);
+    // a coarser torque LSB (1 mN·m) gives 10× smaller machine gains and limits
+    let coarse = Scale {
+        torque_lsb_nm: 1e-3,
+        ..s
+    };
+    let gc = stiffness_gain(&coarse, Feedback::Colocated, "ke", 1.0).unwrap();
+    let g1 = stiffness_gain(&s, Feedback::Colocated, "ke", 1.0).unwrap();
+    assert!((gc.to_f64() * 10.0 / g1.to_f64() - 1.0).abs() < 1e-9);
+    assert_eq!(torque_limit(&coarse, "tau_max", 2.0), Ok(2000));
+    assert_eq!(torque_limit(&s, "tau_max", 2.0), Ok(20000));
+    let bad = Scale {
+        torque_lsb_nm: 0.0,
+        ..s
+    };
+    assert_eq!(
+        torque_limit(&bad, "tau_max", 2.0),
+        Err(UnitsError::BadScale {
+            what: "torque_lsb_nm"
+        })
+    );
     // no output encoder configured
     assert_eq!(
         stiffness_gain(&s, Feedback::NonColocated, "ke", 1.0),
@@ -77,14 +97,14 @@ fn typed_errors() {
     ));
     assert_eq!(gain_from_f64("x", 0.0), Ok(Gain::ZERO));
     assert!(matches!(
-        torque_limit("tau_max", 3.3),
+        torque_limit(&s, "tau_max", 3.3),
         Err(UnitsError::Overflow {
             what: "tau_max",
             ..
         })
     ));
     assert!(matches!(
-        torque_limit("tau_max", -1.0),
+        torque_limit(&s, "tau_max", -1.0),
         Err(UnitsError::OutOfRange { what: "tau_max" })
     ));
     let bad = Scale { motor_cpr: 0, ..s };
@@ -112,15 +132,15 @@ fn typed_errors() {
     )
     .is_ok());
     assert_eq!(
-        ripple_table(128, &[0.0; 65]).unwrap_err(),
+        ripple_table(&s, 128, &[0.0; 65]).unwrap_err(),
         UnitsError::Ripple(RippleError::Length)
     );
     assert_eq!(
-        ripple_table(10, &[0.0; 11]).unwrap_err(),
+        ripple_table(&s, 10, &[0.0; 11]).unwrap_err(),
         UnitsError::Ripple(RippleError::Period)
     );
     assert!(matches!(
-        ripple_table(128, &[0.0, 4.0]),
+        ripple_table(&s, 128, &[0.0, 4.0]),
         Err(UnitsError::Overflow { what: "ripple", .. })
     ));
     assert_eq!(
