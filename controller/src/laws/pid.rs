@@ -1,4 +1,4 @@
-//! The PID core shared by position PD/PID (notes §2.2, [D] backward difference) and force
+//! The PID core shared by position PD/PID (notes §2.2, \[D\] backward difference) and force
 //! P/PD/PI/PID (§2.3, §2.6): `τ = Kp·e − Kd·r + I`, `I_k = I_{k−1} + Ki·T·e_k`.
 //!
 //! * `e` is the error (counts, or torque LSB for force), `r` the *measured* rate the D term acts
