@@ -32,4 +32,9 @@
     )
 )]
 
+pub mod fixed_math;
+pub mod laws;
+pub mod power_stage;
 pub mod proto;
+pub mod sensing;
+pub mod units;

@@ -1,0 +1,295 @@
+//! Shared fixed-point helpers for the 1 kHz path: the scaled-integer [`Gain`], saturation with
+//! flags, and the internal unit types.
+//!
+//! # Internal units (one place, used by `laws`, `sensing`, `units`, `power_stage`)
+//!
+//! | quantity | type | unit / format |
+//! |---|---|---|
+//! | position | [`Counts`] = `i64` | encoder counts after multi-turn unwrap (motor encoder for x1, output encoder for x2) |
+//! | position error | `i32` | counts; an `i64` difference is clamped to `i32` and [`Flags::INPUT_CLAMPED`] is raised |
+//! | velocity | [`Vel`] = `I28F4` | counts/s, 4 fractional bits: 1/16 count/s = 1.7·10⁻⁴ rad/s at 2304 cpr, the resolution of the thesis's Sensorimotor velocity (1.8·10⁻⁴ rad/s, notes §1); range ±1.3·10⁸ counts/s (±58 000 rev/s at 2304 cpr, ±128 rev/s at 2²⁰ cpr) |
+//! | torque | [`Torque`] = `i32` | [`TORQUE_LSB_NM`] = 0.1 mN·m by default (`units::Scale::torque_lsb_nm` can choose another LSB; the laws are LSB-agnostic). Motor-side for commands; a force-sensor value is output-side in the same LSB (gains carry the 1/N) |
+//! | torque command | [`TorqueCmd`] = `i16` | 0.1 mN·m motor side, ±3.2767 N·m (the thesis motor is ≤ 2 N·m) |
+//!
+//! # Why a mantissa/shift gain
+//! The thesis (notes §1) needs ≈320:1 of stiffness range at one encoder, and this project also
+//! runs from 2304 cpr to 2²⁰ cpr encoders: a fixed Q format either overflows at the top or
+//! rounds small gains to zero. A [`Gain`] is `mant / 2^shift` with a 31-bit mantissa, i.e. a
+//! tiny floating point number whose exponent is chosen once at configuration time (`units`).
+//! At run time a product is one 32×32→64 multiply, a rounding add and a shift: it cannot
+//! overflow (|x·mant| < 2⁶²), and its relative representation error is ≤ 2⁻³⁰.
+#![deny(clippy::float_arithmetic)]
+
+use fixed::types::I28F4;
+
+/// Multi-turn position in encoder counts.
+pub type Counts = i64;
+/// Velocity in counts/s, Q28.4 (see module docs).
+pub type Vel = I28F4;
+/// Torque in [`TORQUE_LSB_NM`] units, internal width.
+pub type Torque = i32;
+/// Final torque command sent to the power stage / actuator frame.
+pub type TorqueCmd = i16;
+/// Size of one torque LSB in N·m.
+pub const TORQUE_LSB_NM: f64 = 1.0e-4;
+/// Fractional bits of [`Vel`].
+pub const VEL_FRAC_BITS: u32 = 4;
+
+/// Status flags a law reports with every output. Bit set = the event happened this step.
+///
+/// The design rule "never overflow silently" (design.md) is implemented by every saturating
+/// operation OR-ing one of these bits in, so the card can forward them in telemetry.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Flags(pub u16);
+
+impl Flags {
+    /// No event.
+    pub const NONE: Flags = Flags(0);
+    /// The output was clamped to the law's torque limit.
+    pub const OUTPUT_SATURATED: Flags = Flags(1);
+    /// An input (position error, force error, velocity) was clamped to its documented range.
+    pub const INPUT_CLAMPED: Flags = Flags(1 << 1);
+    /// The integrator hit its limit or integration was suspended (anti-windup active).
+    pub const INTEGRATOR_LIMITED: Flags = Flags(1 << 2);
+    /// An intermediate sum saturated (should not happen with sane limits; reported anyway).
+    pub const OVERFLOW: Flags = Flags(1 << 3);
+    /// A bumpless-transfer offset is still decaying.
+    pub const TRANSFER_ACTIVE: Flags = Flags(1 << 4);
+    /// A sensing input jumped further than the estimator accepts in one step (clamped).
+    pub const SENSOR_JUMP: Flags = Flags(1 << 5);
+
+    /// True if any bit of `other` is set in `self`.
+    #[inline]
+    pub const fn contains(self, other: Flags) -> bool {
+        self.0 & other.0 == other.0 && other.0 != 0
+    }
+    /// True if no flag is set.
+    #[inline]
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// Set `other` if `cond`.
+    #[inline]
+    pub fn set_if(&mut self, cond: bool, other: Flags) {
+        if cond {
+            self.0 |= other.0;
+        }
+    }
+}
+
+impl core::ops::BitOr for Flags {
+    type Output = Flags;
+    #[inline]
+    fn bitor(self, rhs: Flags) -> Flags {
+        Flags(self.0 | rhs.0)
+    }
+}
+
+impl core::ops::BitOrAssign for Flags {
+    #[inline]
+    fn bitor_assign(&mut self, rhs: Flags) {
+        self.0 |= rhs.0;
+    }
+}
+
+/// A torque (or other) value together with the flags raised while computing it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Output {
+    /// Value in [`Torque`] LSB (motor side) unless stated otherwise.
+    pub tau: Torque,
+    /// What happened on the way.
+    pub flags: Flags,
+}
+
+/// Maximum shift of a [`Gain`]: a product `i32 × i32` is < 2⁶², so shifting by more than 62
+/// always gives 0 or −1.
+pub const GAIN_MAX_SHIFT: u8 = 62;
+
+/// A real gain `mant / 2^shift` (see module docs for why).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Gain {
+    mant: i32,
+    shift: u8,
+}
+
+impl Gain {
+    /// The zero gain (a disabled term).
+    pub const ZERO: Gain = Gain { mant: 0, shift: 0 };
+    /// The unity gain.
+    pub const ONE: Gain = Gain { mant: 1, shift: 0 };
+
+    /// Build from raw parts; `None` if `shift > 62`.
+    pub const fn from_parts(mant: i32, shift: u8) -> Option<Gain> {
+        if shift > GAIN_MAX_SHIFT {
+            None
+        } else {
+            Some(Gain { mant, shift })
+        }
+    }
+
+    /// Mantissa.
+    #[inline]
+    pub const fn mant(self) -> i32 {
+        self.mant
+    }
+    /// Binary exponent (value = mant / 2^shift).
+    #[inline]
+    pub const fn shift(self) -> u8 {
+        self.shift
+    }
+    /// True for the zero gain.
+    #[inline]
+    pub const fn is_zero(self) -> bool {
+        self.mant == 0
+    }
+
+    /// The exact real value (configuration time, tests and telemetry only).
+    pub fn to_f64(self) -> f64 {
+        #[allow(clippy::float_arithmetic)]
+        {
+            self.mant as f64 / (1u64 << self.shift) as f64
+        }
+    }
+
+    /// `round(x · mant / 2^shift)` exactly, half rounded towards +∞. Cannot overflow:
+    /// |x·mant| ≤ 2⁶², the rounding offset ≤ 2⁶¹.
+    #[inline]
+    pub fn apply(self, x: i32) -> i64 {
+        let p = i64::from(x).wrapping_mul(i64::from(self.mant));
+        round_shr(p, u32::from(self.shift))
+    }
+}
+
+/// `round(p / 2^s)` with half towards +∞, for |p| ≤ 2⁶² and s ≤ 62 (no overflow possible).
+#[inline]
+pub fn round_shr(p: i64, s: u32) -> i64 {
+    if s == 0 {
+        return p;
+    }
+    let half = 1i64.wrapping_shl(s.wrapping_sub(1));
+    p.saturating_add(half).wrapping_shr(s)
+}
+
+/// Saturate an `i64` to `i32`; the bool is true if it had to clamp.
+#[inline]
+pub fn sat_i32(x: i64) -> (i32, bool) {
+    if x > i64::from(i32::MAX) {
+        (i32::MAX, true)
+    } else if x < i64::from(i32::MIN) {
+        (i32::MIN, true)
+    } else {
+        (x as i32, false)
+    }
+}
+
+/// Clamp to `[-lim, +lim]` (lim taken as |lim|, at most `i32::MAX`); the bool is true if it
+/// clamped.
+#[inline]
+pub fn clamp_sym(x: i64, lim: i32) -> (i32, bool) {
+    // |i32::MIN| is not an i32: treat it as i32::MAX.
+    let l = i64::from(lim).wrapping_abs().min(i64::from(i32::MAX));
+    if x > l {
+        (l as i32, true)
+    } else if x < l.wrapping_neg() {
+        (l.wrapping_neg() as i32, true)
+    } else {
+        (x as i32, false)
+    }
+}
+
+/// Position error `a − b` in counts, clamped to `i32` (flag on clamp).
+#[inline]
+pub fn pos_error(a: Counts, b: Counts) -> (i32, bool) {
+    sat_i32(a.saturating_sub(b))
+}
+
+/// Final torque command: clamp to the `i16` command range.
+#[inline]
+pub fn to_command(tau: Torque) -> (TorqueCmd, bool) {
+    if tau > i32::from(i16::MAX) {
+        (i16::MAX, true)
+    } else if tau < -32767 {
+        // Symmetric: −32767, never −32768, so |command| is representable.
+        (-i16::MAX, true)
+    } else {
+        (tau as i16, false)
+    }
+}
+
+/// A first-order low-pass `y += α(u − y)` in Q16 of its input unit. α is a `U1F15` fraction
+/// in (0, 1] (larger values are treated as 1). Used for force-rate filtering and impedance compensation (notes §2.3, §2.12:
+/// the thesis used digital differentiation plus low-pass filtering).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LowPass {
+    y_q16: i64,
+}
+
+/// Filter coefficient type: α in [0, 2), 15 fractional bits (`fixed` U1F15).
+pub type Alpha = fixed::types::U1F15;
+
+impl LowPass {
+    /// Zero state.
+    pub const NEW: LowPass = LowPass { y_q16: 0 };
+
+    /// Reset the state to `y` (in input units).
+    pub fn reset(&mut self, y: i32) {
+        self.y_q16 = i64::from(y).wrapping_shl(16);
+    }
+    /// One step; returns the filtered value rounded to input units. α is limited to 1.0
+    /// (its documented range): then |u − y| < 2³² LSB = 2⁴⁸ in Q16, × α ≤ 2¹⁵ stays < 2⁶³,
+    /// and y remains a convex combination of past inputs (|y| ≤ 2³¹).
+    #[inline]
+    pub fn step(&mut self, u: i32, alpha: Alpha) -> i32 {
+        let u_q16 = i64::from(u).wrapping_shl(16);
+        let diff = u_q16.wrapping_sub(self.y_q16);
+        let a = i64::from(alpha.to_bits().min(1 << 15));
+        let inc = round_shr(diff.wrapping_mul(a), 15);
+        self.y_q16 = self.y_q16.wrapping_add(inc);
+        sat_i32(round_shr(self.y_q16, 16)).0
+    }
+    /// Current value in input units.
+    pub fn value(&self) -> i32 {
+        sat_i32(round_shr(self.y_q16, 16)).0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gain_mul_rounds() {
+        let g = Gain::from_parts(3, 1).unwrap(); // 1.5
+        assert_eq!(g.apply(3), 5); // 4.5 → 5
+        assert_eq!(g.apply(-3), -4); // −4.5 → −4 (half up)
+        assert_eq!(Gain::ONE.apply(i32::MIN), i64::from(i32::MIN));
+        let big = Gain::from_parts(i32::MIN, 0).unwrap();
+        assert_eq!(big.apply(i32::MIN), 1i64 << 62);
+    }
+
+    #[test]
+    fn command_is_symmetric() {
+        assert_eq!(to_command(1 << 20), (i16::MAX, true));
+        assert_eq!(to_command(-(1 << 20)), (-i16::MAX, true));
+        assert_eq!(to_command(-5), (-5, false));
+    }
+
+    #[test]
+    fn lowpass_converges() {
+        let mut f = LowPass::default();
+        let a = Alpha::from_num(0.1);
+        let mut y = 0;
+        for _ in 0..300 {
+            y = f.step(1000, a);
+        }
+        assert_eq!(y, 1000);
+        for _ in 0..300 {
+            y = f.step(i32::MIN, a);
+        }
+        assert!(y < -2_000_000_000);
+    }
+}
