@@ -32,6 +32,7 @@
     )
 )]
 
+pub mod card;
 pub mod fixed_math;
 pub mod laws;
 pub mod power_stage;

@@ -1,0 +1,795 @@
+//! The card runtime: what turns the control laws into a motor card.
+//!
+//! Sans-IO (design.md): [`Card::step`] takes the time and the sensor values of one tick and
+//! returns the actuator command; [`Card::handle_frame`] takes a received frame;
+//! [`Card::poll`] checks the timeouts when nothing arrives; [`Card::poll_transmit`] hands
+//! out the frames the card wants to send (fault, telemetry, heartbeat, parameter replies).
+//! It never reads a clock or a bus, so the same code runs in an MCU's CAN ISR, in the HIL
+//! lab's card thread, and in unit tests with a simulated clock.
+//!
+//! ```text
+//!  frame ─► proto::Message::decode ─► handle_message ─┬─ ControlWord ─► state machine
+//!                                                     ├─ Setpoint*   ─► latched setpoint
+//!                                                     ├─ ParamWrite  ─► Staging (checked)
+//!                                                     ├─ ParamCommit ─► build CardConfig ─► pending
+//!                                                     └─ Sensor      ─► step():
+//!      apply pending (cycle boundary, bumpless) ─► unwrap + observer ─► checks (seq, sensors,
+//!      watchdog, limits) ─► law (mode/state) ─► torque limit (always last) ─► Actuator
+//! ```
+//!
+//! State machine (CiA-402 shaped, see `proto::state::State`): `Disabled –Shutdown→ Ready
+//! –Enable(mode)→ Enabled(mode) –QuickStop→ QuickStop → Disabled`; any fault while driving →
+//! `FaultReaction` (configured reaction) → `Fault`, latched until `ClearFault`.
+
+pub mod config;
+pub mod si;
+pub mod store;
+
+use embedded_can::Frame;
+
+use crate::fixed_math::{clamp_sym, Counts, Flags, Torque, Vel};
+use crate::laws::{JointState, Measurements, Setpoint};
+use crate::proto::params::{self as p, WatchdogReaction};
+use crate::proto::{
+    self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode, NodeId,
+    ParamResponse, ParamStatus, RejectCounters, ReplyTo, State, TelemetryMotion, TelemetryTorque,
+};
+use crate::sensing::{TrackingObserver, Unwrapper};
+
+pub use config::{CardConfig, ConfigError};
+pub use store::{ParamStore, Staging};
+
+/// Frames the card can queue between two `poll_transmit` drains. A tick queues at most a
+/// fault, a telemetry frame and a heartbeat; parameter replies come one per received frame.
+pub const OUTBOX_CAPACITY: usize = 16;
+
+/// One tick's sensor values, as carried by the `Sensor` (and `OutputEncoder`) frames or read
+/// by an MCU's sensor ISR.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sensors {
+    /// Free-running motor encoder count (wraps mod 2³²).
+    pub motor_counts: u32,
+    /// Output torque sensor, 0.01 N·m, if valid this tick.
+    pub output_torque: Option<i16>,
+    /// Output encoder count, if the joint has one and it was read this tick.
+    pub output_counts: Option<u32>,
+    /// Tick sequence number (increments by one per tick, wraps).
+    pub seq: u8,
+    /// The encoder reported an error.
+    pub encoder_error: bool,
+}
+
+/// How a running fault reaction drives the motor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+enum Reaction {
+    /// Torque zero at once.
+    ZeroTorque,
+    /// Quick-stop damping to standstill.
+    Damp,
+}
+
+/// A commit or a mode switch waiting for the next cycle boundary.
+#[derive(Clone, Debug)]
+struct Pending {
+    store: Option<ParamStore>,
+    config: CardConfig,
+}
+
+/// The motor card. See the module docs.
+#[derive(Debug)]
+pub struct Card {
+    node: NodeId,
+    state: State,
+    mode: Option<Mode>,
+    fault: Option<(FaultCode, i32)>,
+    reaction: Reaction,
+    store: ParamStore,
+    staging: Staging,
+    pending: Option<Pending>,
+    cfg: CardConfig,
+    joint: JointState,
+    motor: Unwrapper,
+    observer: TrackingObserver,
+    output: Unwrapper,
+    output_observer: TrackingObserver,
+    /// `OutputEncoder` frame of the current tick (seq, counts), waiting for its `Sensor`.
+    output_frame: Option<(u8, u32)>,
+    x_d: i32,
+    velocity_ff: i16,
+    torque_ff: i16,
+    tau_d_out: i16,
+    last_cmd: Torque,
+    last_meas: Measurements,
+    last_seq: Option<u8>,
+    last_sensor_us: Option<u64>,
+    last_supervisor_us: Option<u64>,
+    last_heartbeat_us: Option<u64>,
+    telemetry_tick: u16,
+    telemetry_torque_next: bool,
+    limits: LimitFlags,
+    counters: RejectCounters,
+    outbox: heapless::Deque<Message, OUTBOX_CAPACITY>,
+    commits: u32,
+}
+
+/// Law flags → wire limit flags.
+fn limit_flags(f: Flags) -> LimitFlags {
+    let mut l = LimitFlags::NONE;
+    l.set(LimitFlags::TORQUE, f.contains(Flags::OUTPUT_SATURATED));
+    l.set(
+        LimitFlags::INTEGRATOR,
+        f.contains(Flags::INTEGRATOR_LIMITED),
+    );
+    l.set(
+        LimitFlags::OVERFLOW,
+        f.contains(Flags::OVERFLOW) || f.contains(Flags::INPUT_CLAMPED),
+    );
+    l
+}
+
+/// Velocity in law units (1/16 count/s) → wire units (8 counts/s per LSB), saturated.
+fn velocity_to_wire(v: Vel) -> (i16, bool) {
+    let w = v.to_bits().wrapping_shr(7); // /16 /8 = /128
+    match i16::try_from(w) {
+        Ok(x) => (x, false),
+        Err(_) => (if w < 0 { i16::MIN } else { i16::MAX }, true),
+    }
+}
+
+impl Card {
+    /// A card for `node` with every parameter at its default, `Disabled`. Fails only if the
+    /// parameter table's defaults do not build a configuration (a table bug; tested).
+    pub fn new(node: NodeId) -> Result<Card, ConfigError> {
+        let mut store = ParamStore::new();
+        store.set_unchecked(p::NODE_ID, i32::from(node.get()));
+        let cfg = config::build(&store, None)?;
+        Ok(Card {
+            node,
+            state: State::Disabled,
+            mode: None,
+            fault: None,
+            reaction: Reaction::ZeroTorque,
+            store,
+            staging: Staging::new(),
+            pending: None,
+            cfg,
+            joint: JointState::new(),
+            motor: Unwrapper::new(),
+            observer: TrackingObserver::new(),
+            output: Unwrapper::new(),
+            output_observer: TrackingObserver::new(),
+            output_frame: None,
+            x_d: 0,
+            velocity_ff: 0,
+            torque_ff: 0,
+            tau_d_out: 0,
+            last_cmd: 0,
+            last_meas: Measurements::default(),
+            last_seq: None,
+            last_sensor_us: None,
+            last_supervisor_us: None,
+            last_heartbeat_us: None,
+            telemetry_tick: 0,
+            telemetry_torque_next: false,
+            limits: LimitFlags::NONE,
+            counters: RejectCounters::new(),
+            outbox: heapless::Deque::new(),
+            commits: 0,
+        })
+    }
+
+    // ---------------------------------------------------------------- accessors
+
+    /// This card's node number.
+    pub fn node(&self) -> NodeId {
+        self.node
+    }
+    /// Current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+    /// Selected mode (while `Enabled`, the running one).
+    pub fn mode(&self) -> Option<Mode> {
+        self.mode
+    }
+    /// Latched fault and its detail.
+    pub fn fault(&self) -> Option<(FaultCode, i32)> {
+        self.fault
+    }
+    /// Rejected-frame counters.
+    pub fn counters(&self) -> &RejectCounters {
+        &self.counters
+    }
+    /// Active parameters.
+    pub fn params(&self) -> &ParamStore {
+        &self.store
+    }
+    /// Active derived configuration.
+    pub fn config(&self) -> &CardConfig {
+        &self.cfg
+    }
+    /// Last measurements the laws saw (unwrapped positions, velocity estimates).
+    pub fn measurements(&self) -> &Measurements {
+        &self.last_meas
+    }
+    /// Limit flags of the last tick.
+    pub fn limits(&self) -> LimitFlags {
+        self.limits
+    }
+
+    fn driving(&self) -> bool {
+        matches!(
+            self.state,
+            State::Enabled | State::QuickStop | State::FaultReaction
+        )
+    }
+
+    // ---------------------------------------------------------------- frames in
+
+    /// Handles one received frame. Returns the actuator command when the frame was this
+    /// card's `Sensor` frame (the tick). Malformed frames are counted, never acted upon.
+    pub fn handle_frame<F: Frame>(&mut self, now_us: u64, frame: &F) -> Option<Actuator> {
+        match Message::decode(frame) {
+            Ok((node, msg)) => self.handle_message(now_us, node, msg),
+            Err(e) => {
+                self.counters.record(&e);
+                None
+            }
+        }
+    }
+
+    /// Handles one decoded message addressed to `node`.
+    pub fn handle_message(&mut self, now_us: u64, node: NodeId, msg: Message) -> Option<Actuator> {
+        if node != self.node && !node.is_broadcast() {
+            return None; // another joint's traffic
+        }
+        match msg {
+            Message::Sensor(s) => {
+                let output_counts = match self.output_frame.take() {
+                    Some((seq, c)) if seq == s.seq && s.output_encoder => Some(c),
+                    _ => None,
+                };
+                if s.output_encoder && output_counts.is_none() && self.driving() {
+                    let detail = i32::from(s.seq);
+                    self.enter_fault(FaultCode::SequenceError, detail);
+                }
+                let sensors = Sensors {
+                    motor_counts: s.motor_counts,
+                    output_torque: s.output_torque,
+                    output_counts,
+                    seq: s.seq,
+                    encoder_error: s.encoder_error,
+                };
+                return Some(self.step(now_us, &sensors));
+            }
+            Message::OutputEncoder(o) => self.output_frame = Some((o.seq, o.output_counts)),
+            Message::SetpointMotion(sp) => {
+                self.feed_watchdog(now_us);
+                self.x_d = sp.position;
+                self.velocity_ff = sp.velocity_ff;
+                self.torque_ff = sp.torque_ff;
+            }
+            Message::SetpointForce(sp) => {
+                self.feed_watchdog(now_us);
+                self.tau_d_out = sp.output_torque;
+            }
+            Message::ControlWord(cw) => {
+                self.feed_watchdog(now_us);
+                self.control(cw);
+            }
+            Message::ParamWrite(w) => {
+                self.feed_watchdog(now_us);
+                let status = match store::check_write(w.param_id, w.value, self.driving()) {
+                    Ok(()) => self.staging.push(w.set_seq, w.param_id, w.value),
+                    Err(e) => Err(e),
+                };
+                self.reply(ReplyTo::Write, status, w.set_seq, w.param_id, w.value);
+            }
+            Message::ParamCommit(c) => {
+                self.feed_watchdog(now_us);
+                let (status, param) = match self.commit(c.set_seq, c.count, c.crc) {
+                    Ok(()) => (Ok(()), 0),
+                    Err((s, param)) => (Err(s), param),
+                };
+                let crc = i32::from_le_bytes(c.crc.to_le_bytes());
+                self.reply(ReplyTo::Commit, status, c.set_seq, param, crc);
+            }
+            Message::ParamRead(r) => {
+                self.feed_watchdog(now_us);
+                let (status, value) = match self.store.get(r.param_id) {
+                    Ok(v) => (Ok(()), v),
+                    Err(e) => (Err(e), 0),
+                };
+                self.reply(ReplyTo::Read, status, 0, r.param_id, value);
+            }
+            // Frames the card itself sends (or another card's, with our node number): not
+            // for us to act upon.
+            Message::Actuator(_)
+            | Message::TelemetryMotion(_)
+            | Message::TelemetryTorque(_)
+            | Message::ParamResponse(_)
+            | Message::Heartbeat(_)
+            | Message::Fault(_) => {}
+        }
+        None
+    }
+
+    fn feed_watchdog(&mut self, now_us: u64) {
+        self.last_supervisor_us = Some(now_us);
+    }
+
+    fn reply(
+        &mut self,
+        to: ReplyTo,
+        status: Result<(), ParamStatus>,
+        seq: u8,
+        id: u16,
+        value: i32,
+    ) {
+        let status = match status {
+            Ok(()) => ParamStatus::Ok,
+            Err(s) => {
+                self.counters.record_refused();
+                s
+            }
+        };
+        self.push(Message::ParamResponse(ParamResponse {
+            reply_to: to,
+            status,
+            set_seq: seq,
+            param_id: id,
+            value,
+        }));
+    }
+
+    fn push(&mut self, m: Message) {
+        if self.outbox.push_back(m).is_err() {
+            // Full: drop the oldest non-fault frame so the newest state gets out.
+            let _ = self.outbox.pop_front();
+            let _ = self.outbox.push_back(m);
+        }
+    }
+
+    /// Validates a commit against the staged set and builds its configuration; the result is
+    /// applied at the next cycle boundary.
+    fn commit(&mut self, seq: u8, count: u8, crc: u32) -> Result<(), (ParamStatus, u16)> {
+        let r = self.staging.matches(seq, count, crc);
+        if let Err(s) = r {
+            self.staging.clear();
+            return Err((s, 0));
+        }
+        let driving = self.driving();
+        for &(id, v) in self.staging.entries() {
+            if let Err(s) = store::check_write(id, v, driving) {
+                self.staging.clear();
+                return Err((s, id));
+            }
+        }
+        let base = match &self.pending {
+            Some(Pending { store: Some(s), .. }) => s.clone(),
+            _ => self.store.clone(),
+        };
+        let next = self.staging.applied_to(&base);
+        let mode = if self.state == State::Enabled {
+            self.mode
+        } else {
+            None
+        };
+        let built = config::build(&next, mode);
+        self.staging.clear();
+        match built {
+            Ok(config) => {
+                let mut next = next;
+                next.set_unchecked(p::LAST_SET_SEQ, i32::from(seq));
+                self.pending = Some(Pending {
+                    store: Some(next),
+                    config,
+                });
+                Ok(())
+            }
+            Err(e) => Err((ParamStatus::InconsistentSet, e.param())),
+        }
+    }
+
+    fn control(&mut self, cw: ControlWord) {
+        let ok = match (cw, self.state) {
+            (ControlWord::KeepAlive, _) => true,
+            (ControlWord::Shutdown, State::Disabled) => {
+                match config::build(&self.pending_store().clone(), None) {
+                    Ok(_) => self.state = State::Ready,
+                    Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+                }
+                true
+            }
+            (ControlWord::Enable(mode), State::Ready | State::Enabled) => {
+                match config::build(&self.pending_store().clone(), Some(mode)) {
+                    Ok(config) => {
+                        self.pending = Some(Pending {
+                            store: self.pending.take().and_then(|p| p.store),
+                            config,
+                        });
+                        if self.state == State::Ready {
+                            // Aim where we are: no jump on arming.
+                            self.x_d = self.current_position_i32(mode);
+                            self.velocity_ff = 0;
+                            self.torque_ff = 0;
+                        }
+                        self.state = State::Enabled;
+                        self.mode = Some(mode);
+                    }
+                    Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+                }
+                true
+            }
+            (ControlWord::Disable, s) if !matches!(s, State::FaultReaction | State::Fault) => {
+                self.state = State::Disabled;
+                self.joint.reset();
+                true
+            }
+            (ControlWord::QuickStop, State::Enabled) => {
+                self.state = State::QuickStop;
+                true
+            }
+            (ControlWord::ClearFault, State::Fault) => {
+                self.state = State::Disabled;
+                self.fault = None;
+                self.joint.reset();
+                true
+            }
+            _ => false,
+        };
+        if !ok {
+            self.counters.record_refused();
+        }
+    }
+
+    fn pending_store(&self) -> &ParamStore {
+        match &self.pending {
+            Some(Pending { store: Some(s), .. }) => s,
+            _ => &self.store,
+        }
+    }
+
+    fn current_position_i32(&self, mode: Mode) -> i32 {
+        let x = if mode.needs_output_encoder() {
+            self.last_meas.x2
+        } else {
+            self.last_meas.x1
+        };
+        // Truncation to the wire's i32 count space is the documented wrap.
+        x as i32
+    }
+
+    /// Enters `FaultReaction` (first fault wins; later ones are not latched over it) and
+    /// queues the `Fault` frame.
+    fn enter_fault(&mut self, code: FaultCode, detail: i32) {
+        if matches!(self.state, State::FaultReaction | State::Fault) {
+            return;
+        }
+        let was_driving = self.driving();
+        self.fault = Some((code, detail));
+        self.reaction = match code {
+            FaultCode::SupervisorWatchdog => match self.cfg.watchdog_reaction {
+                WatchdogReaction::ZeroTorque => Reaction::ZeroTorque,
+                WatchdogReaction::QuickStop => Reaction::Damp,
+            },
+            FaultCode::PositionLimit
+            | FaultCode::VelocityLimit
+            | FaultCode::OutputTorqueLimit
+            | FaultCode::Overflow => Reaction::Damp,
+            _ => Reaction::ZeroTorque,
+        };
+        self.state = if was_driving && self.reaction == Reaction::Damp {
+            State::FaultReaction
+        } else {
+            State::Fault
+        };
+        self.pending = None;
+        // The fault frame goes first: it is the most urgent thing the card has to say.
+        let f = Message::Fault(Fault {
+            code,
+            limits: self.limits,
+            detail,
+        });
+        if self.outbox.push_front(f).is_err() {
+            let _ = self.outbox.pop_back();
+            let _ = self.outbox.push_front(f);
+        }
+    }
+
+    /// Reports that the card's own bus failed (bus-off, error-passive): the card goes to
+    /// its safe state, as it would on any other fault.
+    pub fn bus_error(&mut self, code: i32) {
+        self.enter_fault(FaultCode::BusError, code);
+    }
+
+    // ---------------------------------------------------------------- time
+
+    /// Checks the timeouts when no sensor frame arrived: the sensor timeout while driving,
+    /// and the heartbeat. Call it whenever the bus is idle (or from a timer on an MCU).
+    pub fn poll(&mut self, now_us: u64) {
+        if self.driving() {
+            if let Some(t) = self.last_sensor_us {
+                let since = now_us.saturating_sub(t);
+                if since > self.cfg.sensor_timeout_us {
+                    let detail = i32::try_from(since).unwrap_or(i32::MAX);
+                    // No sensors: no damping possible, torque off.
+                    self.reaction = Reaction::ZeroTorque;
+                    self.enter_fault(FaultCode::SensorTimeout, detail);
+                    self.state = State::Fault;
+                }
+            }
+            self.check_watchdog(now_us);
+        }
+        self.heartbeat(now_us);
+    }
+
+    fn check_watchdog(&mut self, now_us: u64) {
+        if !matches!(self.state, State::Enabled | State::QuickStop) {
+            return;
+        }
+        let last = self.last_supervisor_us.unwrap_or(now_us);
+        let since = now_us.saturating_sub(last);
+        if since > self.cfg.supervisor_timeout_us {
+            let ms = i32::try_from(since / 1000).unwrap_or(i32::MAX);
+            self.enter_fault(FaultCode::SupervisorWatchdog, ms);
+        }
+    }
+
+    fn heartbeat(&mut self, now_us: u64) {
+        let due = match self.last_heartbeat_us {
+            None => true,
+            Some(t) => now_us.saturating_sub(t) >= self.cfg.heartbeat_period_us,
+        };
+        if due {
+            self.last_heartbeat_us = Some(now_us);
+            let hb = self.heartbeat_message();
+            self.push(hb);
+        }
+    }
+
+    /// The heartbeat this card would send now.
+    pub fn heartbeat_message(&self) -> Message {
+        Message::Heartbeat(Heartbeat {
+            state: self.state,
+            mode: self.mode,
+            fault: self.fault.map(|(c, _)| c),
+            limits: self.limits,
+            rejected_malformed: self.counters.malformed_total(),
+            rejected_refused: self.counters.refused_u8(),
+            protocol_version: proto::PROTOCOL_VERSION,
+        })
+    }
+
+    /// Next frame the card wants to send (faults first), if any.
+    pub fn poll_transmit(&mut self) -> Option<Message> {
+        self.outbox.pop_front()
+    }
+
+    // ---------------------------------------------------------------- the tick
+
+    fn apply_pending(&mut self) {
+        let Some(pend) = self.pending.take() else {
+            return;
+        };
+        if let Some(s) = pend.store {
+            self.store = s;
+            self.commits = self.commits.saturating_add(1);
+            self.store.set_unchecked(
+                p::COMMIT_COUNT,
+                i32::try_from(self.commits).unwrap_or(i32::MAX),
+            );
+        }
+        self.cfg = pend.config;
+        if self.state == State::Enabled {
+            // Bumpless: the first output with the new laws equals the last one commanded.
+            let sp = self.setpoint();
+            self.joint
+                .init_bumpless(&self.cfg.joint, self.last_cmd, &sp, &self.last_meas);
+        }
+    }
+
+    fn setpoint(&self) -> Setpoint {
+        let here = if self.mode.is_some_and(|m| m.needs_output_encoder()) {
+            self.last_meas.x2
+        } else {
+            self.last_meas.x1
+        };
+        // Nearest multi-turn position whose low 32 bits are the setpoint (wire wrap).
+        let delta = i64::from(self.x_d.wrapping_sub(here as i32));
+        Setpoint {
+            x_d: here.saturating_add(delta),
+            tau_d: i32::from(self.tau_d_out).saturating_mul(config::OUTPUT_TORQUE_TO_LAW),
+        }
+    }
+
+    /// One control period: the `Sensor` frame of tick `seq` arrived at `now_us`.
+    pub fn step(&mut self, now_us: u64, s: &Sensors) -> Actuator {
+        self.last_sensor_us = Some(now_us);
+        // Sequence: lost frames in a row beyond the tolerance are a fault.
+        if let Some(last) = self.last_seq {
+            let lost = s.seq.wrapping_sub(last).wrapping_sub(1);
+            if lost > self.cfg.max_seq_skip && lost != u8::MAX && self.driving() {
+                let detail = i32::from(u16::from(last.wrapping_add(1)) << 8 | u16::from(s.seq));
+                self.enter_fault(FaultCode::SequenceError, detail);
+            }
+        }
+        self.last_seq = Some(s.seq);
+
+        // Sensing (always, so positions are current when the card is armed).
+        let x1: Counts = self.motor.update(s.motor_counts);
+        let (v1, mut flags) = self.observer.step(&self.cfg.observer, x1);
+        let (x2, v2) = match s.output_counts {
+            Some(c) => {
+                let x2 = self.output.update(c);
+                let (v2, f2) = self.output_observer.step(&self.cfg.output_observer, x2);
+                flags |= f2;
+                (x2, v2)
+            }
+            None => (self.last_meas.x2, Vel::ZERO),
+        };
+        let tau_env = s
+            .output_torque
+            .map(|t| i32::from(t).saturating_mul(config::OUTPUT_TORQUE_TO_LAW))
+            .unwrap_or(0);
+        self.last_meas = Measurements {
+            x1,
+            v1,
+            x2,
+            v2,
+            tau_env,
+        };
+
+        // Cycle boundary: a commit or mode switch takes effect now, bumplessly.
+        self.apply_pending();
+
+        // Checks that only matter while the card drives the motor.
+        let mut limits = LimitFlags::NONE;
+        if self.driving() {
+            if s.encoder_error {
+                self.enter_fault(FaultCode::SensorInvalid, i32::from(s.seq));
+            }
+            if let Some(m) = self.mode {
+                let missing_torque = m.needs_torque_sensor() && s.output_torque.is_none();
+                let missing_output = m.needs_output_encoder() && s.output_counts.is_none();
+                if self.state == State::Enabled && (missing_torque || missing_output) {
+                    self.enter_fault(FaultCode::SensorInvalid, i32::from(s.seq));
+                }
+            }
+            self.check_watchdog(now_us);
+            let v = i64::from(v1.to_bits());
+            if v.saturating_abs() > self.cfg.velocity_limit {
+                limits.insert(LimitFlags::VELOCITY);
+                self.enter_fault(FaultCode::VelocityLimit, (v / 16) as i32);
+            }
+            if let Some((lo, hi)) = self.cfg.position_limits {
+                if x1 < lo || x1 > hi {
+                    limits.insert(LimitFlags::POSITION);
+                    self.enter_fault(FaultCode::PositionLimit, x1 as i32);
+                }
+            }
+            if let Some(t) = s.output_torque {
+                if i32::from(t).saturating_abs() > self.cfg.output_torque_limit {
+                    self.enter_fault(FaultCode::OutputTorqueLimit, i32::from(t));
+                }
+            }
+        }
+
+        // The law for this state.
+        let raw: i64 = match self.state {
+            State::Enabled => {
+                let mut sp = self.setpoint();
+                if let Some((lo, hi)) = self.cfg.position_limits {
+                    if !self.mode.is_some_and(|m| m.needs_output_encoder()) {
+                        let c = sp.x_d.clamp(lo, hi);
+                        if c != sp.x_d {
+                            limits.insert(LimitFlags::POSITION);
+                            sp.x_d = c;
+                        }
+                    }
+                }
+                let out = self.joint.step(&self.cfg.joint, &sp, &self.last_meas);
+                flags |= out.out.flags;
+                let vff = Vel::from_bits(i32::from(self.velocity_ff).saturating_mul(128));
+                let ff = match self.mode {
+                    Some(Mode::TorquePassthrough) => i64::from(self.torque_ff),
+                    Some(
+                        Mode::PositionPdColocated
+                        | Mode::PositionPdNonColocated
+                        | Mode::PositionPid
+                        | Mode::ImpedanceColocated
+                        | Mode::ImpedanceNonColocated,
+                    ) => i64::from(self.torque_ff)
+                        .saturating_add(self.cfg.velocity_ff_gain.apply(vff.to_bits())),
+                    _ => 0,
+                };
+                i64::from(out.out.tau).saturating_add(ff)
+            }
+            State::QuickStop | State::FaultReaction => {
+                let damp = self
+                    .cfg
+                    .quick_stop_damping
+                    .apply(v1.to_bits())
+                    .saturating_neg();
+                let still =
+                    i64::from(v1.to_bits()).saturating_abs() <= self.cfg.standstill_velocity;
+                let zero =
+                    self.state == State::FaultReaction && self.reaction == Reaction::ZeroTorque;
+                if still || zero {
+                    self.state = if self.state == State::QuickStop {
+                        State::Disabled
+                    } else {
+                        State::Fault
+                    };
+                    self.joint.reset();
+                    0
+                } else {
+                    damp
+                }
+            }
+            State::Disabled | State::Ready | State::Fault => 0,
+        };
+
+        // The torque limit is always the last thing applied.
+        let (tau, clamped) = clamp_sym(raw, self.cfg.torque_limit);
+        if clamped {
+            flags |= Flags::OUTPUT_SATURATED;
+        }
+        let drive = self.driving();
+        let torque = if drive {
+            i16::try_from(tau).unwrap_or(0)
+        } else {
+            0
+        };
+        self.last_cmd = Torque::from(torque);
+        let mut l = limit_flags(flags);
+        l.insert(limits);
+        self.limits = l;
+
+        self.telemetry(s.seq);
+        self.heartbeat(now_us);
+
+        Actuator {
+            torque,
+            seq: s.seq,
+            limits: self.limits,
+            drive,
+            fault: matches!(self.state, State::FaultReaction | State::Fault),
+        }
+    }
+
+    fn telemetry(&mut self, seq: u8) {
+        let div = self.cfg.telemetry_divider;
+        if div == 0 {
+            return;
+        }
+        self.telemetry_tick = self.telemetry_tick.saturating_add(1);
+        if self.telemetry_tick < div {
+            return;
+        }
+        self.telemetry_tick = 0;
+        let m = if self.telemetry_torque_next {
+            Message::TelemetryTorque(TelemetryTorque {
+                torque_cmd: i16::try_from(self.last_cmd).unwrap_or(0),
+                output_torque: i16::try_from(self.last_meas.tau_env / config::OUTPUT_TORQUE_TO_LAW)
+                    .unwrap_or(0),
+                seq,
+                limits: self.limits,
+            })
+        } else {
+            let (v, sat) = velocity_to_wire(self.last_meas.v1);
+            if sat {
+                self.limits.insert(LimitFlags::WIRE_SATURATED);
+            }
+            Message::TelemetryMotion(TelemetryMotion {
+                position: self.last_meas.x1 as i32,
+                velocity: v,
+                seq,
+            })
+        };
+        self.telemetry_torque_next = !self.telemetry_torque_next;
+        self.push(m);
+    }
+}
