@@ -90,11 +90,12 @@ pub fn lstsq(cols: &[Vec<f64>], y: &[f64], mask: &[bool]) -> Vec<f64> {
             .max_by(|&r, &s| a[r][c].abs().total_cmp(&a[s][c].abs()))
             .unwrap();
         a.swap(c, piv);
-        for r in 0..k {
+        let pivot_row = a[c].clone();
+        for (r, row) in a.iter_mut().enumerate() {
             if r != c {
-                let f = a[r][c] / a[c][c];
-                for j in c..=k {
-                    a[r][j] -= f * a[c][j];
+                let f = row[c] / pivot_row[c];
+                for (x, pv) in row.iter_mut().zip(&pivot_row).skip(c) {
+                    *x -= f * pv;
                 }
             }
         }
