@@ -155,8 +155,7 @@ proptest! {
         width in 0.0..0.5f64, s in -10.0..10.0f64, period in 1e-3..1.0f64,
         name in "[a-z][a-z0-9 _\"\\\\-]{0,20}",
     ) {
-        let mut m = Model::default();
-        m.name = name;
+        let mut m = Model { name, ..Model::default() };
         let mut torque = if free { Param::free(tc) } else { Param::fixed(tc) };
         torque.min = lo;
         m.effects.coulomb = Some(coulomb::Params { torque });
