@@ -3,7 +3,7 @@
 //! deadband"; D/A plus analogue amplifier).
 //!
 //! Dynamics: applied = `u − clamp(u, ±w) − c·u·|u|/S` — a dead zone of half-width w and a
-//! torque constant that sags by the fraction c at |u| = S.
+//! torque constant that sags by the fraction c at |u| = S (both on the command u).
 //!
 //! Fingerprint: `R = u − applied`, i.e. `[clamp(u/w, −1, 1), u·|u|/S]` with amplitudes w
 //! (the deadband half-width; the shape grid supplies w inside the clamp, the fitted amplitude

@@ -133,18 +133,22 @@ pub struct ActuatorLaw {
 }
 
 impl ActuatorLaw {
-    /// Applied torque for an (already delayed) command `u`, before the offset.
+    /// Applied torque for an (already delayed) command `u`, before the offset. The deadband
+    /// and the torque-constant sag act on the (quantised) command itself, so each effect's
+    /// residual is exactly its fingerprint column times its amplitude.
     #[inline]
     pub fn shape(&self, u: f64) -> f64 {
-        let mut x = u;
-        if self.quant_step > 0.0 {
-            x -= self.quant_gain * super::quantization::error(x, self.quant_step);
-        }
+        let q = if self.quant_step > 0.0 {
+            u - self.quant_gain * super::quantization::error(u, self.quant_step)
+        } else {
+            u
+        };
+        let mut x = q;
         if self.deadband > 0.0 {
-            x -= super::deadband::dead(x, self.deadband);
+            x -= super::deadband::dead(q, self.deadband);
         }
         if self.nonlinearity != 0.0 && self.input_scale > 0.0 {
-            x -= self.nonlinearity * x * x.abs() / self.input_scale;
+            x -= self.nonlinearity * q * q.abs() / self.input_scale;
         }
         x
     }

@@ -90,6 +90,10 @@ pub struct Shape {
     pub period: f64,
     /// Backlash: total width of the dead zone, position units.
     pub backlash: f64,
+    /// Backlash: what makes the transmission cross its gap. `false`: velocity reversal (a
+    /// friction-dominated load, the thesis's stiffness/backdrive tests); `true`: sign change
+    /// of the input (an inertia-dominated load, whose transmitted torque follows the input).
+    pub backlash_on_input: bool,
     /// Deadband: half-width of the input dead zone, input units.
     pub deadband: f64,
     /// Deadband (torque-constant nonlinearity): input scale the nonlinearity is normalised to
@@ -110,6 +114,7 @@ impl Default for Shape {
             stribeck_exponent: 2.0,
             period: std::f64::consts::TAU / 100.0,
             backlash: 0.01,
+            backlash_on_input: false,
             deadband: 0.05,
             input_scale: 1.0,
             quant_step: 0.0,

@@ -292,7 +292,7 @@ impl Plant {
         };
         self.v = [0.0; 3];
         self.stuck = true;
-        self.last = self.true_state_now(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, false);
+        self.last = self.true_state_now(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, false);
     }
 
     /// The true state after the last step.
@@ -350,6 +350,7 @@ impl Plant {
         }
         self.last = self.true_state_now(
             torque_cmd,
+            out.motor_accel,
             out.applied / m.n,
             out.transmission,
             out.friction,
@@ -491,6 +492,7 @@ impl Plant {
                 self.v[2] = self.v[0];
                 Substep {
                     applied: u,
+                    motor_accel: a,
                     transmission: u,
                     friction: f,
                     env,
@@ -508,6 +510,7 @@ impl Plant {
                 self.v[1] = self.v[0];
                 Substep {
                     applied: u,
+                    motor_accel: a0,
                     transmission: tt,
                     friction: f,
                     env,
@@ -527,6 +530,7 @@ impl Plant {
                 let (f, env, a) = self.friction_node(2, m.i2, tau, h, before);
                 Substep {
                     applied: u,
+                    motor_accel: a0,
                     transmission: tt,
                     friction: f,
                     env,
@@ -540,6 +544,7 @@ impl Plant {
     fn true_state_now(
         &self,
         command: f64,
+        motor_accel: f64,
         applied: f64,
         transmission: f64,
         friction: f64,
@@ -557,6 +562,7 @@ impl Plant {
             time,
             motor_angle: self.x[0] * n,
             motor_velocity: self.v[0] * n,
+            motor_acceleration: motor_accel * n,
             middle_angle: self.x[1],
             output_angle: self.x[2],
             output_velocity: self.v[2],
@@ -577,6 +583,8 @@ impl Plant {
 #[derive(Clone, Copy, Debug, Default)]
 struct Substep {
     applied: f64,
+    /// Motor node acceleration (output-referred).
+    motor_accel: f64,
     transmission: f64,
     friction: f64,
     env: f64,
