@@ -355,7 +355,7 @@ fn deadband_swallows_small_commands_and_the_nonlinearity_sags_large_ones() {
     assert_eq!(plant.state().output_velocity, 0.0);
     plant.step(2.0, DT);
     let applied = plant.state().applied_torque;
-    let expected = 2.0 - 0.1 - 0.02 * 2.0 * 2.0 / 2.0;
+    let expected = (2.0 - 0.1) * (1.0 - 0.02 * 2.0 / 2.0);
     assert!(
         (applied - expected).abs() < 1e-12,
         "{applied} vs {expected}"

@@ -69,9 +69,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let mut dir = 0.0;
     // Load position, velocity and sample index at the last trigger (NaN: not yet in contact).
     let (mut anchor, mut anchor_v, mut anchor_i) = (f64::NAN, 0.0, 0);
-    for i in 0..n {
-        let x = trigger[i];
-        let q = traj.position[i];
+    for (i, (&x, &q)) in trigger.iter().zip(&traj.position[..n]).enumerate() {
         let s = if x > eps {
             1.0
         } else if x < -eps {

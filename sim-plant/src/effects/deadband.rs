@@ -2,12 +2,13 @@
 //! linearity": 1–2 % RMS of max, worst near max torque, "a slight indication of a small torque
 //! deadband"; D/A plus analogue amplifier).
 //!
-//! Dynamics: applied = `u − clamp(u, ±w) − c·u·|u|/S` — a dead zone of half-width w and a
-//! torque constant that sags by the fraction c at |u| = S (both on the command u).
+//! Dynamics: applied = `dz(u)·(1 − c·|u|/S)` with `dz(u) = u − clamp(u, ±w)` — a dead zone of
+//! half-width w and a torque constant that sags by the fraction c at |u| = S (zero torque
+//! inside the dead zone, never a sign flip for c < 1).
 //!
-//! Fingerprint: `R = u − applied`, i.e. `[clamp(u/w, −1, 1), u·|u|/S]` with amplitudes w
-//! (the deadband half-width; the shape grid supplies w inside the clamp, the fitted amplitude
-//! re-estimates it) and c. Thesis-notes §7.9: residual ∝ command, worse near max; small dead
+//! Fingerprint: `R = u − applied = w·clamp(u/w, −1, 1) + c·dz(u)·|u|/S`, i.e. columns
+//! `[clamp(u/w, −1, 1), dz(u)·|u|/S]` with amplitudes w (the deadband half-width; the shape
+//! grid supplies w inside the columns, the fitted amplitude re-estimates it) and c. Thesis-notes §7.9: residual ∝ command, worse near max; small dead
 //! zone at zero command.
 
 use super::signal::positive_or;
@@ -39,14 +40,14 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     laws.actuator.input_scale = p.input_scale.value;
 }
 
-/// `[clamp(u/w, −1, 1), u·|u|/S]`.
+/// `[clamp(u/w, −1, 1), dz(u)·|u|/S]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let u = &traj.input[..traj.len()];
     let w = positive_or(shape.deadband, 1e-9);
     let s = positive_or(shape.input_scale, 1.0);
     vec![
         u.iter().map(|&u| (u / w).clamp(-1.0, 1.0)).collect(),
-        u.iter().map(|&u| u * u.abs() / s).collect(),
+        u.iter().map(|&u| (u - dead(u, w)) * u.abs() / s).collect(),
     ]
 }
 

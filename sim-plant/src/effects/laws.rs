@@ -126,15 +126,15 @@ pub struct ActuatorLaw {
     pub delay: f64,
     /// Deadband half-width (N·m).
     pub deadband: f64,
-    /// Torque-constant nonlinearity c: applied = u·(1 − c·|u|/scale).
+    /// Torque-constant sag c: applied = dz(u)·(1 − c·|u|/scale), dz = the deadband.
     pub nonlinearity: f64,
     /// Scale of the nonlinearity (N·m).
     pub input_scale: f64,
 }
 
 impl ActuatorLaw {
-    /// Applied torque for an (already delayed) command `u`, before the offset. The deadband
-    /// and the torque-constant sag act on the (quantised) command itself, so each effect's
+    /// Applied torque for an (already delayed) command `u`, before the offset: quantised, then
+    /// the deadband removed, then the torque constant sagging with |command|. Each effect's
     /// residual is exactly its fingerprint column times its amplitude.
     #[inline]
     pub fn shape(&self, u: f64) -> f64 {
@@ -148,7 +148,7 @@ impl ActuatorLaw {
             x -= super::deadband::dead(q, self.deadband);
         }
         if self.nonlinearity != 0.0 && self.input_scale > 0.0 {
-            x -= self.nonlinearity * q * q.abs() / self.input_scale;
+            x -= self.nonlinearity * x * q.abs() / self.input_scale;
         }
         x
     }
