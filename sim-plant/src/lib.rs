@@ -6,6 +6,7 @@
 //! effects — one module per effect — shared by the simulator, the fitter and the diagnosis.
 
 pub mod effects;
+pub mod fastmath;
 pub mod param;
 pub mod units;
 

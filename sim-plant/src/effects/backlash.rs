@@ -34,7 +34,7 @@ crate::define_params! {
 }
 
 /// `x` minus its clamp to ±half: zero inside the gap, shifted outside.
-#[inline]
+#[inline(always)]
 pub fn dead_zone(x: f64, half: f64) -> f64 {
     if x > half {
         x - half

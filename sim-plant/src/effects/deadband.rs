@@ -28,7 +28,7 @@ crate::define_params! {
 }
 
 /// The part of `x` a dead zone of half-width `w` removes: `clamp(x, −w, w)`.
-#[inline]
+#[inline(always)]
 pub fn dead(x: f64, w: f64) -> f64 {
     x.clamp(-w, w)
 }

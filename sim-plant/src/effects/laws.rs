@@ -32,7 +32,7 @@ pub struct FrictionLaw {
 
 impl FrictionLaw {
     /// Static (breakaway) level for impending motion in direction `dir` (±1).
-    #[inline]
+    #[inline(always)]
     pub fn breakaway(&self, dir: f64) -> f64 {
         if dir >= 0.0 {
             self.coulomb_pos + self.excess_pos
@@ -52,7 +52,7 @@ impl FrictionLaw {
     }
 
     /// Resisting torque while sliding with velocity `v ≠ 0` (same sign as `v`).
-    #[inline]
+    #[inline(always)]
     pub fn sliding(&self, v: f64) -> f64 {
         if v > 0.0 {
             let dry = self.coulomb_pos
@@ -83,6 +83,8 @@ pub struct SpringLaw {
     pub k_soft: f64,
     /// Torque at the knee (N·m); 0 = linear spring.
     pub knee_torque: f64,
+    /// Deflection at the knee (rad), set by [`EffectLaws::finalize`].
+    pub knee_deflection: f64,
     /// Structural damping in contact (N·m·s/rad).
     pub damping: f64,
     /// Total backlash width (rad at the output).
@@ -91,21 +93,26 @@ pub struct SpringLaw {
 
 impl SpringLaw {
     /// Deflection beyond the backlash gap (0 inside the gap).
-    #[inline]
+    #[inline(always)]
     pub fn engaged(&self, deflection: f64) -> f64 {
         super::backlash::dead_zone(deflection, 0.5 * self.backlash)
     }
 
     /// Transmitted torque for a deflection `d` (input minus output, rad) and deflection
     /// rate `dd`, from motor side to output side.
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, d: f64, dd: f64) -> f64 {
         let e = self.engaged(d);
         if e == 0.0 {
             return 0.0;
         }
-        super::compliance::elastic(e, self.k_soft, self.k_hard, self.knee_torque)
-            + self.damping * dd
+        super::compliance::elastic_with(
+            e,
+            self.k_soft,
+            self.k_hard,
+            self.knee_torque,
+            self.knee_deflection,
+        ) + self.damping * dd
     }
 
     /// Largest incremental stiffness (N·m/rad), for the integrator's stability check.
@@ -136,7 +143,7 @@ impl ActuatorLaw {
     /// Applied torque for an (already delayed) command `u`, before the offset: quantised, then
     /// the deadband removed, then the torque constant sagging with |command|. Each effect's
     /// residual is exactly its fingerprint column times its amplitude.
-    #[inline]
+    #[inline(always)]
     pub fn shape(&self, u: f64) -> f64 {
         let q = if self.quant_step > 0.0 {
             u - self.quant_gain * super::quantization::error(u, self.quant_step)
@@ -169,9 +176,17 @@ pub struct PeriodicTorque {
 
 impl PeriodicTorque {
     /// Resisting torque at angle `q` with transmitted torque `load`.
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, q: f64, load: f64) -> f64 {
-        let (s, c) = (self.wavenumber * q).sin_cos();
+        let (s, c) = crate::fastmath::sin_cos(self.wavenumber * q);
+        (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
+    }
+
+    /// As [`PeriodicTorque::torque`], with the angle's sine and cosine tracked by `rotor`
+    /// (the integrator's fast path).
+    #[inline(always)]
+    pub fn torque_tracked(&self, rotor: &mut crate::fastmath::Rotor, q: f64, load: f64) -> f64 {
+        let (s, c) = rotor.sin_cos(self.wavenumber * q);
         (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
     }
 
@@ -195,6 +210,11 @@ impl EffectLaws {
             &mut f.viscous_neg,
         ] {
             *x = x.max(0.0);
+        }
+        let s = &mut self.spring;
+        s.knee_deflection = super::compliance::knee_deflection(s.k_soft, s.knee_torque);
+        if s.knee_deflection == 0.0 {
+            s.knee_torque = 0.0;
         }
     }
 }

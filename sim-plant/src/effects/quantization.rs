@@ -22,7 +22,7 @@ crate::define_params! {
 }
 
 /// Rounding error `x − Δ·round(x/Δ)`, in (−Δ/2, Δ/2].
-#[inline]
+#[inline(always)]
 pub fn error(x: f64, step: f64) -> f64 {
     x - step * (x / step).round()
 }

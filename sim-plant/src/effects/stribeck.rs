@@ -26,7 +26,7 @@ crate::define_params! {
 }
 
 /// `exp(−(v/vs)^δ)` for `v ≥ 0`, cheap for the common δ = 2 and far from zero.
-#[inline]
+#[inline(always)]
 pub fn decay(v: f64, vs: f64, delta: f64) -> f64 {
     if vs <= 0.0 {
         return 0.0;

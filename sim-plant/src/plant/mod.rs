@@ -39,6 +39,7 @@ pub use sensors::{SensorConfig, Sensors};
 pub use state::TrueState;
 
 use crate::effects::{compliance, EffectLaws};
+use crate::fastmath::Rotor;
 use crate::model::{Model, PlantKind};
 
 /// Options that are not part of the joint model: integration, noise seed, set-up.
@@ -103,6 +104,19 @@ struct Mech {
     i2: f64,
     b2: f64,
     max_torque: f64,
+    /// Reciprocals, so the substep loop multiplies instead of dividing.
+    inv_i1: f64,
+    inv_im: f64,
+    inv_i2: f64,
+}
+
+/// 1/x, or 0 for a node that does not exist (x = 0).
+fn recip(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0 / x
+    } else {
+        0.0
+    }
 }
 
 /// A simulated joint. Build with [`Plant::new`] or [`Plant::from_preset`], drive with
@@ -157,6 +171,9 @@ impl Plant {
                 i2: 0.0,
                 b2: 0.0,
                 max_torque: model.motor.max_torque.value,
+                inv_i1: 0.0,
+                inv_im: 0.0,
+                inv_i2: 0.0,
             },
             PlantKind::TwoMass | PlantKind::ThreeMass => Mech {
                 kind,
@@ -169,7 +186,16 @@ impl Plant {
                 i2: p.output_inertia.value,
                 b2: p.output_damping.value,
                 max_torque: model.motor.max_torque.value,
+                inv_i1: 0.0,
+                inv_im: 0.0,
+                inv_i2: 0.0,
             },
+        };
+        let mech = Mech {
+            inv_i1: recip(mech.i1),
+            inv_im: recip(mech.im),
+            inv_i2: recip(mech.i2),
+            ..mech
         };
         let h = 1.0 / opts.substep_rate;
         let delay_slots = (laws.actuator.delay / h).round() as usize;
@@ -339,15 +365,36 @@ impl Plant {
     pub fn advance(&mut self, torque_cmd: f64, dt: f64) {
         let count = ((dt * self.rate).round() as usize).max(1);
         let h = dt / count as f64;
+        let inv_h = count as f64 / dt;
         let m = self.mech;
         let cmd = if torque_cmd.is_nan() { 0.0 } else { torque_cmd };
         let sat = cmd.clamp(-m.max_torque, m.max_torque);
         let u_cmd = m.n * sat;
         let mut out = Substep::default();
-        for _ in 0..count {
-            let u = self.actuate(u_cmd);
-            out = self.substep(u, h);
+        // The state lives in a local for the loop so it can stay in registers.
+        let mut core = Core {
+            x: self.x,
+            v: self.v,
+            stuck: self.stuck,
+            ripple: Rotor::new(),
+            cogging: Rotor::new(),
+            gravity: Rotor::new(),
+        };
+        if self.delay_line.is_empty() {
+            // The actuator chain is memoryless without a delay: shape once per step.
+            let u = self.laws.actuator.shape(u_cmd);
+            for _ in 0..count {
+                out = self.substep(&mut core, u, h, inv_h);
+            }
+        } else {
+            for _ in 0..count {
+                let u = self.actuate(u_cmd);
+                out = self.substep(&mut core, u, h, inv_h);
+            }
         }
+        self.x = core.x;
+        self.v = core.v;
+        self.stuck = core.stuck;
         self.last = self.true_state_now(
             torque_cmd,
             out.motor_accel,
@@ -373,7 +420,7 @@ impl Plant {
     }
 
     /// Actuator chain for one substep: delay line, then the shaping effects.
-    #[inline]
+    #[inline(always)]
     fn actuate(&mut self, u: f64) -> f64 {
         let delayed = if self.delay_line.is_empty() {
             u
@@ -387,40 +434,45 @@ impl Plant {
     }
 
     /// Resisting torques at the output that are not friction or spring: offset, ripple,
-    /// gravity (and cogging for the rigid plant, where the rotor is the output node).
-    #[inline]
-    fn output_load(&self, q: f64, load: f64) -> f64 {
+    /// gravity (the rigid plant's output is its only node).
+    #[inline(always)]
+    fn output_load(&self, c: &mut Core, q: f64, load: f64) -> f64 {
         let l = &self.laws;
         let mut r = l.offset;
         if !l.ripple.is_zero() {
-            r += l.ripple.torque(q, load);
+            r += l.ripple.torque_tracked(&mut c.ripple, q, load);
         }
         if !l.gravity.is_zero() {
-            r += l.gravity.torque(q, 0.0);
+            r += l.gravity.torque_tracked(&mut c.gravity, q, 0.0);
         }
         r
     }
 
-    #[inline]
-    fn cogging(&self, xm: f64) -> f64 {
-        let c = &self.laws.cogging;
-        if c.is_zero() {
+    /// Cogging at output-referred motor-node position `xm` (motor angle = N·xm).
+    #[inline(always)]
+    fn cogging(&self, c: &mut Core, xm: f64) -> f64 {
+        let g = &self.laws.cogging;
+        if g.is_zero() {
             0.0
         } else {
-            c.torque(xm * self.mech.n, 0.0)
+            g.torque_tracked(&mut c.cogging, xm * self.mech.n, 0.0)
         }
     }
 
     /// Update the friction node (index `i`, inertia `inertia`) given its non-friction,
     /// non-environment torque `tau` and its velocity at the start of the substep; returns
     /// (friction, environment torque on the node, acceleration).
-    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn friction_node(
-        &mut self,
+        &self,
+        c: &mut Core,
         i: usize,
         inertia: f64,
+        inv_inertia: f64,
         tau: f64,
         h: f64,
+        inv_h: f64,
         v_old: f64,
     ) -> (f64, f64, f64) {
         if let Some(vp) = self.env.prescribed_velocity() {
@@ -430,29 +482,28 @@ impl Plant {
             } else {
                 self.laws.friction.sliding(vp)
             };
-            let a = (vp - v_old) / h;
-            self.v[i] = vp;
-            self.stuck = vp == 0.0;
+            let a = (vp - v_old) * inv_h;
+            c.v[i] = vp;
+            c.stuck = vp == 0.0;
             let env = inertia * a - tau + f;
             return (f, env, a);
         }
-        let env = self.env.torque(self.x[i], v_old);
+        let env = self.env.torque(c.x[i], v_old);
         let (vn, f) = friction::advance(
             v_old,
-            &mut self.stuck,
+            &mut c.stuck,
             tau + env,
-            inertia,
+            h * inv_inertia,
             &self.laws.friction,
             self.dry,
-            h,
         );
-        self.v[i] = vn;
-        (f, env, (vn - v_old) / h)
+        c.v[i] = vn;
+        (f, env, (vn - v_old) * inv_h)
     }
 
     /// One drift–kick–drift substep with applied (output-referred) actuator torque `u`.
-    #[inline]
-    fn substep(&mut self, u: f64, h: f64) -> Substep {
+    #[inline(always)]
+    fn substep(&self, c: &mut Core, u: f64, h: f64, inv_h: f64) -> Substep {
         let hh = 0.5 * h;
         // A kinematic environment (lock, crank) imposes the output velocity for the whole
         // substep, both drifts included, so a locked output does not creep and a crank's angle
@@ -462,34 +513,34 @@ impl Plant {
         } else {
             2
         };
-        let before = self.v[node];
+        let before = c.v[node];
         if let Some(vp) = self.env.prescribed_velocity() {
-            self.v[node] = vp;
+            c.v[node] = vp;
             if node == 0 {
-                self.v = [vp; 3];
+                c.v = [vp; 3];
             }
         }
         for i in 0..3 {
-            self.x[i] += hh * self.v[i];
+            c.x[i] += hh * c.v[i];
         }
-        let out = self.kick(u, h, before);
+        let out = self.kick(c, u, h, inv_h, before);
         for i in 0..3 {
-            self.x[i] += hh * self.v[i];
+            c.x[i] += hh * c.v[i];
         }
         out
     }
 
     /// Forces at the current (mid-step) positions, full velocity update.
-    #[inline]
-    fn kick(&mut self, u: f64, h: f64, before: f64) -> Substep {
+    #[inline(always)]
+    fn kick(&self, c: &mut Core, u: f64, h: f64, inv_h: f64, before: f64) -> Substep {
         let m = self.mech;
         match m.kind {
             PlantKind::Rigid => {
-                let x = self.x[0];
-                let tau = u - m.b1 * self.v[0] - self.output_load(x, u) - self.cogging(x);
-                let (f, env, a) = self.friction_node(0, m.i1, tau, h, before);
-                self.v[1] = self.v[0];
-                self.v[2] = self.v[0];
+                let x = c.x[0];
+                let tau = u - m.b1 * c.v[0] - self.output_load(c, x, u) - self.cogging(c, x);
+                let (f, env, a) = self.friction_node(c, 0, m.i1, m.inv_i1, tau, h, inv_h, before);
+                c.v[1] = c.v[0];
+                c.v[2] = c.v[0];
                 Substep {
                     applied: u,
                     motor_accel: a,
@@ -500,14 +551,14 @@ impl Plant {
                 }
             }
             PlantKind::TwoMass => {
-                let [x0, _, x2] = self.x;
-                let [v0, _, v2] = self.v;
+                let [x0, _, x2] = c.x;
+                let [v0, _, v2] = c.v;
                 let tt = self.laws.spring.torque(x0 - x2, v0 - v2);
-                let a0 = (u - tt - m.b1 * v0 - self.cogging(x0)) / m.i1;
-                self.v[0] = v0 + h * a0;
-                let tau = tt - m.b2 * v2 - self.output_load(x2, tt);
-                let (f, env, a) = self.friction_node(2, m.i2, tau, h, before);
-                self.v[1] = self.v[0];
+                let a0 = (u - tt - m.b1 * v0 - self.cogging(c, x0)) * m.inv_i1;
+                c.v[0] = v0 + h * a0;
+                let tau = tt - m.b2 * v2 - self.output_load(c, x2, tt);
+                let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
+                c.v[1] = c.v[0];
                 Substep {
                     applied: u,
                     motor_accel: a0,
@@ -518,16 +569,16 @@ impl Plant {
                 }
             }
             PlantKind::ThreeMass => {
-                let [x0, x1, x2] = self.x;
-                let [v0, v1, v2] = self.v;
+                let [x0, x1, x2] = c.x;
+                let [v0, v1, v2] = c.v;
                 let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                 let tt = self.laws.spring.torque(x1 - x2, v1 - v2);
-                let a0 = (u - ts - m.b1 * v0 - self.cogging(x0)) / m.i1;
-                let a1 = (ts - tt) / m.im;
-                self.v[0] = v0 + h * a0;
-                self.v[1] = v1 + h * a1;
-                let tau = tt - m.b2 * v2 - self.output_load(x2, tt);
-                let (f, env, a) = self.friction_node(2, m.i2, tau, h, before);
+                let a0 = (u - ts - m.b1 * v0 - self.cogging(c, x0)) * m.inv_i1;
+                let a1 = (ts - tt) * m.inv_im;
+                c.v[0] = v0 + h * a0;
+                c.v[1] = v1 + h * a1;
+                let tau = tt - m.b2 * v2 - self.output_load(c, x2, tt);
+                let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
                 Substep {
                     applied: u,
                     motor_accel: a0,
@@ -577,6 +628,18 @@ impl Plant {
             saturated,
         }
     }
+}
+
+/// The integrated state, held in a local during the substep loop.
+#[derive(Clone, Copy, Debug)]
+struct Core {
+    x: [f64; 3],
+    v: [f64; 3],
+    stuck: bool,
+    /// Phase trackers of the ripple, cogging and gravity angles.
+    ripple: Rotor,
+    cogging: Rotor,
+    gravity: Rotor,
 }
 
 /// Quantities of the last substep, for the true-state record.
