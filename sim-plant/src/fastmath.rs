@@ -15,7 +15,7 @@ use std::f64::consts::FRAC_PI_2;
 /// Estrin's form (depth 3 instead of Horner's 6).
 #[inline(always)]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    const PIO2_HI: f64 = 1.570_796_326_794_896_558;
+    const PIO2_HI: f64 = FRAC_PI_2; // nearest f64 to π/2
     const PIO2_LO: f64 = 6.123_233_995_736_766e-17;
     const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: x + MAGIC rounds x to an integer
     let y = x * (1.0 / FRAC_PI_2);

@@ -24,6 +24,8 @@ pub struct FrictionLaw {
     pub stribeck_velocity: f64,
     /// Stribeck exponent δ.
     pub stribeck_exponent: f64,
+    /// 1/vs (0 without a Stribeck excess), set by [`EffectLaws::finalize`].
+    pub inv_stribeck_velocity: f64,
     /// Viscous coefficient, positive motion (N·m·s/rad).
     pub viscous_pos: f64,
     /// Viscous coefficient, negative motion (N·m·s/rad).
@@ -57,12 +59,12 @@ impl FrictionLaw {
         if v > 0.0 {
             let dry = self.coulomb_pos
                 + self.excess_pos
-                    * stribeck::decay(v, self.stribeck_velocity, self.stribeck_exponent);
+                    * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent);
             dry + self.viscous_pos * v
         } else if v < 0.0 {
             let dry = self.coulomb_neg
                 + self.excess_neg
-                    * stribeck::decay(-v, self.stribeck_velocity, self.stribeck_exponent);
+                    * stribeck::decay_inv(-v, self.inv_stribeck_velocity, self.stribeck_exponent);
             -dry + self.viscous_neg * v
         } else {
             0.0
@@ -211,6 +213,11 @@ impl EffectLaws {
         ] {
             *x = x.max(0.0);
         }
+        f.inv_stribeck_velocity = if f.stribeck_velocity > 0.0 {
+            1.0 / f.stribeck_velocity
+        } else {
+            0.0
+        };
         let s = &mut self.spring;
         s.knee_deflection = super::compliance::knee_deflection(s.k_soft, s.knee_torque);
         if s.knee_deflection == 0.0 {

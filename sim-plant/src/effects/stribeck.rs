@@ -31,7 +31,14 @@ pub fn decay(v: f64, vs: f64, delta: f64) -> f64 {
     if vs <= 0.0 {
         return 0.0;
     }
-    let x = v / vs;
+    decay_inv(v, 1.0 / vs, delta)
+}
+
+/// [`decay`] with 1/vs precomputed (the integrator's form: no division on the dependency
+/// chain of the friction node).
+#[inline(always)]
+pub fn decay_inv(v: f64, inv_vs: f64, delta: f64) -> f64 {
+    let x = v * inv_vs;
     let e = if delta == 2.0 {
         x * x
     } else if delta == 1.0 {
