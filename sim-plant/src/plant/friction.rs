@@ -62,6 +62,7 @@ mod tests {
             stribeck_exponent: 2.0,
             viscous_pos: 0.0,
             viscous_neg: 0.0,
+            inv_stribeck_velocity: 100.0,
         }
     }
 
