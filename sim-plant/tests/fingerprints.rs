@@ -129,14 +129,14 @@ fn offset_viscous_gravity_ripple_cogging_are_recovered_exactly() {
         (
             EffectKind::Ripple,
             Shape {
-                period: 0.3,
+                ripple_period: 0.3,
                 ..Shape::default()
             },
         ),
         (
             EffectKind::Cogging,
             Shape {
-                period: TAU / 9.0,
+                cogging_period: TAU / 9.0,
                 ..Shape::default()
             },
         ),
@@ -160,7 +160,7 @@ fn coulomb_asymmetry_and_stribeck_are_recovered_while_sliding() {
     });
     let run = simulate(&m, 8.0, 2.0, false);
     let eps = Shape {
-        sign_velocity: 1e-6,
+        sign_epsilon: 1e-6,
         ..Shape::default()
     };
     let kinds = [
@@ -235,7 +235,7 @@ fn deadband_quantization_and_delay_follow_the_command() {
     });
     let run = simulate(&m, 4.0, 2.0, false);
     let shape = Shape {
-        deadband: 0.05,
+        deadband_width: 0.05,
         input_scale: 2.6,
         ..Shape::default()
     };
@@ -249,7 +249,7 @@ fn deadband_quantization_and_delay_follow_the_command() {
     });
     let run = simulate(&m, 4.0, 2.0, false);
     let shape = Shape {
-        quant_step: 0.04,
+        quantum: 0.04,
         ..Shape::default()
     };
     let got = fit(&[(EffectKind::Quantization, shape)], &run, J, &all(&run));
@@ -265,6 +265,13 @@ fn deadband_quantization_and_delay_follow_the_command() {
     // Linearised u(t − τ) ≈ u − τ·u̇: error of order (ω·τ)² ≈ 5e-3 at 3.7 Hz.
     let got = fit(&[(EffectKind::Delay, shape)], &run, J, &all(&run));
     assert_close(&got, &[3e-3], 0.03);
+    // At the matching shape delay the difference-quotient column is exact.
+    let shape = Shape {
+        delay: 3e-3,
+        ..Shape::default()
+    };
+    let got = fit(&[(EffectKind::Delay, shape)], &run, J, &all(&run));
+    assert_close(&got, &[3e-3], 0.002);
 }
 
 /// Rigid model of a compliant joint, measured at the motor: residual ≈ −(J2²/K)·d²a/dt²
@@ -308,7 +315,7 @@ fn backlash_fingerprint_amplitude_is_the_load_inertia() {
     let run = simulate(&m, 6.0, 1.0, true);
     // A free inertia: the transmitted torque follows the input.
     let shape = Shape {
-        backlash: width,
+        backlash_width: width,
         backlash_on_input: true,
         ..Shape::default()
     };

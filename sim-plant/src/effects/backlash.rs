@@ -28,6 +28,13 @@ pub const DESCRIBE: &str = "backlash dead zone of width b in the transmission; f
      width b at torque reversal in a stiffness test, load lags after each reversal, \
      residual −J_load·a while crossing the gap";
 
+/// Amplitude of the fingerprint column: the inertia beyond the gap (kg·m²), a derived
+/// quantity, not a model parameter.
+pub const AMPLITUDES: &[&str] = &["load_inertia"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Total width of the dead zone (rad at the output).
     width: "rad" = 0.0, [0.0, 1.0], Shape;
@@ -59,11 +66,11 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 /// `[−a·gap_b(t)]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
-    let b = shape.backlash;
+    let b = shape.backlash_width;
     let (trigger, eps) = if shape.backlash_on_input {
         (&traj.input[..n], 1e-3 * traj.max_abs_input())
     } else {
-        (&traj.velocity[..n], shape.sign_velocity)
+        (&traj.velocity[..n], shape.sign_epsilon)
     };
     let mut col = Vec::with_capacity(n);
     let mut dir = 0.0;
@@ -105,9 +112,9 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     for on_input in [false, true] {
         for b in log_space(1e-4 * span, 0.1 * span, 8) {
             out.push(Shape {
-                backlash: b,
+                backlash_width: b,
                 backlash_on_input: on_input,
-                sign_velocity: 1e-3 * vmax,
+                sign_epsilon: 1e-3 * vmax,
                 ..Shape::default()
             });
         }

@@ -28,6 +28,13 @@ pub const DESCRIBE: &str = "transmission spring KT with soft zone (k_soft up to 
      then k_hard); ringing at the transmission mode, residual ∝ d²a/dt², resonance frequency \
      that varies with load";
 
+/// Amplitude of the fingerprint column: −J_far²/K seen from the motor side (kg·m²·s²), a
+/// derived quantity, not a model parameter.
+pub const AMPLITUDES: &[&str] = &["inertia_sq_over_stiffness"];
+
+/// Admissible sign of the first amplitude: negative for a motor-side position sensor.
+pub const SIGN: Option<f64> = Some(-1.0);
+
 crate::define_params! {
     /// Stiffness beyond the knee, or of the whole spring without a knee (N·m/rad, output).
     stiffness: "N·m/rad" = DEFAULT_STIFFNESS, [1e-6, 1e12], Setting;

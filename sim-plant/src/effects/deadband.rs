@@ -18,6 +18,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "actuator deadband and torque-constant nonlinearity; residual tracks \
      the command: a step of ±w around zero command and a term growing like u·|u| near max";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["width", "nonlinearity"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Deadband half-width w (N·m, output-referred).
     width: "N·m" = 0.0, [0.0, 1e6], Amplitude(0);
@@ -43,7 +49,7 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 /// `[clamp(u/w, −1, 1), dz(u)·|u|/S]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let u = &traj.input[..traj.len()];
-    let w = positive_or(shape.deadband, 1e-9);
+    let w = positive_or(shape.deadband_width, 1e-9);
     let s = positive_or(shape.input_scale, 1.0);
     vec![
         u.iter().map(|&u| (u / w).clamp(-1.0, 1.0)).collect(),
@@ -57,7 +63,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     [0.005, 0.01, 0.02, 0.05, 0.1]
         .into_iter()
         .map(|f| Shape {
-            deadband: f * umax,
+            deadband_width: f * umax,
             input_scale: umax,
             ..Shape::default()
         })

@@ -11,6 +11,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "constant bias torque R = c (amplifier/D-A offset, constant load); \
      residual is a constant shift, the same in both directions and at rest";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["torque"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
+
 crate::define_params! {
     /// Constant resisting torque (N·m, output-referred; negative = an assisting bias).
     torque: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);

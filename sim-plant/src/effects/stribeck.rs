@@ -16,6 +16,12 @@ pub const DESCRIBE: &str = "stiction above Coulomb with a Stribeck transition, \
      τc + Δ·exp(-(|v|/vs)^δ); residual peaks at low speed and velocity zero-crossings, \
      delayed breakaway, stick-slip";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["excess"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Stiction minus Coulomb, Δ = τs − τc (N·m), both directions.
     excess: "N·m" = 0.0, [0.0, 1e6], Amplitude(0);
@@ -69,7 +75,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let d = shape.stribeck_exponent;
     vec![traj.velocity[..traj.len()]
         .iter()
-        .map(|&v| smooth_sign(v, shape.sign_velocity) * (-(v.abs() / vs).powf(d)).exp())
+        .map(|&v| smooth_sign(v, shape.sign_epsilon) * (-(v.abs() / vs).powf(d)).exp())
         .collect()]
 }
 
@@ -82,7 +88,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
             out.push(Shape {
                 stribeck_velocity: vs,
                 stribeck_exponent: delta,
-                sign_velocity: 1e-3 * vmax,
+                sign_epsilon: 1e-3 * vmax,
                 ..Shape::default()
             });
         }
