@@ -226,11 +226,32 @@ impl EffectLaws {
     }
 }
 
+/// Which node an [`AdditiveTorque`] acts on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Node {
+    /// The motor node (angle/velocity passed output-referred).
+    Motor,
+    /// The output node (the rigid plant's only node).
+    Output,
+}
+
+/// Extension point: a resisting torque `law(params, q, v, load)` on one node, for a new effect
+/// that fits none of the dedicated slots. Its module's `install` pushes one of these, and the
+/// integrator sums them — so such an effect needs no change to the integrator. (`q`, `v` are
+/// output-referred; `load` is the transmitted torque.)
+#[derive(Clone, Copy, Debug)]
+pub struct AdditiveTorque {
+    /// Where it acts.
+    pub node: Node,
+    /// The torque law.
+    pub law: fn(&[f64; 4], f64, f64, f64) -> f64,
+    /// Up to four numbers for the law.
+    pub params: [f64; 4],
+}
+
 /// Everything the effects of a model install; the integrator evaluates it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct EffectLaws {
-    /// Constant resisting torque on the output (N·m).
-    pub offset: f64,
     /// Friction at the friction node (the output for geared plants: Table 4.1 is output-side).
     pub friction: FrictionLaw,
     /// Transmission spring (compliance + backlash).
@@ -243,4 +264,26 @@ pub struct EffectLaws {
     pub cogging: PeriodicTorque,
     /// Gravity: `sin·sin(q) + cos·cos(q)` of the output angle (a PeriodicTorque with k = 1).
     pub gravity: PeriodicTorque,
+    /// Further resisting torques of effects without a dedicated slot (see [`AdditiveTorque`]).
+    pub additive: Vec<AdditiveTorque>,
+}
+
+impl PartialEq for AdditiveTorque {
+    fn eq(&self, other: &Self) -> bool {
+        self.node == other.node
+            && self.params == other.params
+            && std::ptr::fn_addr_eq(self.law, other.law)
+    }
+}
+
+impl EffectLaws {
+    /// Sum of the additive torques on `node`.
+    #[inline(always)]
+    pub fn additive_on(&self, node: Node, q: f64, v: f64, load: f64) -> f64 {
+        self.additive
+            .iter()
+            .filter(|a| a.node == node)
+            .map(|a| (a.law)(&a.params, q, v, load))
+            .sum()
+    }
 }

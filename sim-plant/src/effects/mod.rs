@@ -12,6 +12,13 @@
 //! All effects are registered in ONE place, the `registry!` invocation below: adding an effect
 //! is one module plus one line there, which extends [`EffectKind`], [`EffectSet`] (the
 //! `[effects]` section of a model file), [`fingerprint`], [`shape_grid`] and installation.
+//! The module's `install` writes into an existing slot of [`EffectLaws`] (friction curve,
+//! spring, actuator chain, periodic torques) or pushes an [`AdditiveTorque`] — a torque law on
+//! the motor or output node that the integrator sums — so the integrator needs no change.
+//!
+//! A new module provides: `DESCRIBE`, `AMPLITUDES` (names of its fingerprint columns'
+//! amplitudes), `SIGN` (admissible sign of the first), a `define_params!` table, and
+//! `install`, `fingerprint`, `shape_grid`.
 //!
 //! ## Sign convention
 //! Every effect is written as a *resisting* torque `R` in the axis equation
@@ -21,7 +28,9 @@
 pub mod laws;
 pub mod signal;
 
-pub use laws::{ActuatorLaw, EffectLaws, FrictionLaw, SpringLaw};
+pub use laws::{
+    ActuatorLaw, AdditiveTorque, EffectLaws, FrictionLaw, Node, PeriodicTorque, SpringLaw,
+};
 
 use crate::param::ParamSpec;
 

@@ -5,7 +5,7 @@
 //!
 //! Dynamics: `R = torque`. Fingerprint: `[1]`.
 
-use super::{EffectLaws, Shape, Trajectory};
+use super::{AdditiveTorque, EffectLaws, Node, Shape, Trajectory};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "constant bias torque R = c (amplifier/D-A offset, constant load); \
@@ -22,9 +22,19 @@ crate::define_params! {
     torque: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
 }
 
-/// Add the bias to the output torque balance.
+/// A constant: the torque law of this effect.
+fn constant(params: &[f64; 4], _q: f64, _v: f64, _load: f64) -> f64 {
+    params[0]
+}
+
+/// Add the bias to the output torque balance, through the generic [`AdditiveTorque`] slot
+/// (this effect doubles as the worked example of that extension point).
 pub fn install(p: &Params, laws: &mut EffectLaws) {
-    laws.offset += p.torque.value;
+    laws.additive.push(AdditiveTorque {
+        node: Node::Output,
+        law: constant,
+        params: [p.torque.value, 0.0, 0.0, 0.0],
+    });
 }
 
 /// `[1]`.

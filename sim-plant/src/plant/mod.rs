@@ -38,7 +38,7 @@ pub use environment::Environment;
 pub use sensors::{SensorConfig, Sensors};
 pub use state::TrueState;
 
-use crate::effects::{compliance, EffectLaws};
+use crate::effects::{compliance, EffectLaws, Node};
 use crate::fastmath::Rotor;
 use crate::model::{Model, PlantKind};
 
@@ -434,11 +434,14 @@ impl Plant {
     }
 
     /// Resisting torques at the output that are not friction or spring: offset, ripple,
-    /// gravity (the rigid plant's output is its only node).
+    /// gravity, additive torques (the rigid plant's output is its only node).
     #[inline(always)]
-    fn output_load(&self, c: &mut Core, q: f64, load: f64) -> f64 {
+    fn output_load(&self, c: &mut Core, q: f64, v: f64, load: f64) -> f64 {
         let l = &self.laws;
-        let mut r = l.offset;
+        let mut r = 0.0;
+        if !l.additive.is_empty() {
+            r += l.additive_on(Node::Output, q, v, load);
+        }
         if !l.ripple.is_zero() {
             r += l.ripple.torque_tracked(&mut c.ripple, q, load);
         }
@@ -448,15 +451,21 @@ impl Plant {
         r
     }
 
-    /// Cogging at output-referred motor-node position `xm` (motor angle = N·xm).
+    /// Resisting torques on the motor node: cogging at output-referred position `xm` (motor
+    /// angle = N·xm) and additive torques.
     #[inline(always)]
-    fn cogging(&self, c: &mut Core, xm: f64) -> f64 {
-        let g = &self.laws.cogging;
-        if g.is_zero() {
-            0.0
-        } else {
-            g.torque_tracked(&mut c.cogging, xm * self.mech.n, 0.0)
+    fn motor_load(&self, c: &mut Core, xm: f64, vm: f64, load: f64) -> f64 {
+        let l = &self.laws;
+        let mut r = 0.0;
+        if !l.cogging.is_zero() {
+            r += l
+                .cogging
+                .torque_tracked(&mut c.cogging, xm * self.mech.n, 0.0);
         }
+        if !l.additive.is_empty() {
+            r += l.additive_on(Node::Motor, xm, vm, load);
+        }
+        r
     }
 
     /// Update the friction node (index `i`, inertia `inertia`) given its non-friction,
@@ -537,7 +546,8 @@ impl Plant {
         match m.kind {
             PlantKind::Rigid => {
                 let x = c.x[0];
-                let tau = u - m.b1 * c.v[0] - self.output_load(c, x, u) - self.cogging(c, x);
+                let v = c.v[0];
+                let tau = u - m.b1 * v - self.output_load(c, x, v, u) - self.motor_load(c, x, v, u);
                 let (f, env, a) = self.friction_node(c, 0, m.i1, m.inv_i1, tau, h, inv_h, before);
                 c.v[1] = c.v[0];
                 c.v[2] = c.v[0];
@@ -554,9 +564,9 @@ impl Plant {
                 let [x0, _, x2] = c.x;
                 let [v0, _, v2] = c.v;
                 let tt = self.laws.spring.torque(x0 - x2, v0 - v2);
-                let a0 = (u - tt - m.b1 * v0 - self.cogging(c, x0)) * m.inv_i1;
+                let a0 = (u - tt - m.b1 * v0 - self.motor_load(c, x0, v0, tt)) * m.inv_i1;
                 c.v[0] = v0 + h * a0;
-                let tau = tt - m.b2 * v2 - self.output_load(c, x2, tt);
+                let tau = tt - m.b2 * v2 - self.output_load(c, x2, v2, tt);
                 let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
                 c.v[1] = c.v[0];
                 Substep {
@@ -573,11 +583,11 @@ impl Plant {
                 let [v0, v1, v2] = c.v;
                 let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                 let tt = self.laws.spring.torque(x1 - x2, v1 - v2);
-                let a0 = (u - ts - m.b1 * v0 - self.cogging(c, x0)) * m.inv_i1;
+                let a0 = (u - ts - m.b1 * v0 - self.motor_load(c, x0, v0, ts)) * m.inv_i1;
                 let a1 = (ts - tt) * m.inv_im;
                 c.v[0] = v0 + h * a0;
                 c.v[1] = v1 + h * a1;
-                let tau = tt - m.b2 * v2 - self.output_load(c, x2, tt);
+                let tau = tt - m.b2 * v2 - self.output_load(c, x2, v2, tt);
                 let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
                 Substep {
                     applied: u,
