@@ -21,7 +21,8 @@
 //! lost while it costs four force evaluations per step. Verlet costs one, is symplectic (no
 //! energy drift on the lossless plant; energy error bounded at O((ω·h)²)), second-order
 //! accurate in frequency, and the single velocity kick is where the friction node can clamp its
-//! velocity to exactly zero for a proper stick state ([`friction`]). Stability needs ω·h < 2
+//! velocity to exactly zero for a proper stick state ([`friction`]). Consecutive half-drifts
+//! are merged (the leapfrog form), so a step costs one drift per substep plus a half at each end. Stability needs ω·h < 2
 //! for the stiffest mode; the constructor refuses anything above ω·h = 1 and says which rate
 //! would do.
 //!
@@ -380,16 +381,24 @@ impl Plant {
             cogging: Rotor::new(),
             gravity: Rotor::new(),
         };
-        if self.delay_line.is_empty() {
-            // The actuator chain is memoryless without a delay: shape once per step.
-            let u = self.laws.actuator.shape(u_cmd);
-            for _ in 0..count {
-                out = self.substep(&mut core, u, h, inv_h);
-            }
-        } else {
-            for _ in 0..count {
-                let u = self.actuate(u_cmd);
-                out = self.substep(&mut core, u, h, inv_h);
+        // Leapfrog form of drift–kick–drift: the second half-drift of one substep and the first
+        // half-drift of the next are one full drift, so positions are synchronised with
+        // velocities only at the ends of the step.
+        let mut before = self.begin_substeps(&mut core, h);
+        let memoryless = self.delay_line.is_empty();
+        // The actuator chain is memoryless without a delay: shape once per step.
+        let shaped = self.laws.actuator.shape(u_cmd);
+        for k in 0..count {
+            let u = if memoryless {
+                shaped
+            } else {
+                self.actuate(u_cmd)
+            };
+            out = self.kick(&mut core, u, h, inv_h, before);
+            before = core.v[self.friction_node_index()];
+            let d = if k + 1 == count { 0.5 * h } else { h };
+            for i in 0..3 {
+                core.x[i] += d * core.v[i];
             }
         }
         self.x = core.x;
@@ -510,18 +519,25 @@ impl Plant {
         (f, env, (vn - v_old) * inv_h)
     }
 
-    /// One drift–kick–drift substep with applied (output-referred) actuator torque `u`.
+    /// Index of the friction (and environment) node: the output, or the only node.
     #[inline(always)]
-    fn substep(&self, c: &mut Core, u: f64, h: f64, inv_h: f64) -> Substep {
-        let hh = 0.5 * h;
-        // A kinematic environment (lock, crank) imposes the output velocity for the whole
-        // substep, both drifts included, so a locked output does not creep and a crank's angle
-        // is exactly speed·t. The previous velocity is kept for the reaction's I·a term.
-        let node = if self.mech.kind == PlantKind::Rigid {
+    fn friction_node_index(&self) -> usize {
+        if self.mech.kind == PlantKind::Rigid {
             0
         } else {
             2
-        };
+        }
+    }
+
+    /// Start of a step: impose a kinematic environment's velocity and drift half a substep.
+    /// Returns the friction node's velocity before the imposition (for the reaction's I·a).
+    ///
+    /// A kinematic environment (lock, crank) imposes the output velocity for the whole step,
+    /// every drift included, so a locked output does not creep and a crank's angle is exactly
+    /// speed·t.
+    #[inline(always)]
+    fn begin_substeps(&self, c: &mut Core, h: f64) -> f64 {
+        let node = self.friction_node_index();
         let before = c.v[node];
         if let Some(vp) = self.env.prescribed_velocity() {
             c.v[node] = vp;
@@ -530,13 +546,9 @@ impl Plant {
             }
         }
         for i in 0..3 {
-            c.x[i] += hh * c.v[i];
+            c.x[i] += 0.5 * h * c.v[i];
         }
-        let out = self.kick(c, u, h, inv_h, before);
-        for i in 0..3 {
-            c.x[i] += hh * c.v[i];
-        }
-        out
+        before
     }
 
     /// Forces at the current (mid-step) positions, full velocity update.
