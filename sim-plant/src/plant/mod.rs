@@ -22,9 +22,12 @@
 //! energy drift on the lossless plant; energy error bounded at O((ω·h)²)), second-order
 //! accurate in frequency, and the single velocity kick is where the friction node can clamp its
 //! velocity to exactly zero for a proper stick state ([`friction`]). Consecutive half-drifts
-//! are merged (the leapfrog form), so a step costs one drift per substep plus a half at each end. Stability needs ω·h < 2
-//! for the stiffest mode; the constructor refuses anything above ω·h = 1 and says which rate
-//! would do.
+//! are merged (the leapfrog form): one drift per substep, plus a half at each end of a step.
+//! Stability needs ω·h < 2 for the stiffest mode; the constructor refuses anything above
+//! ω·h = 1 and says which rate would do.
+//!
+//! The state (positions, velocities, stick flag, phase trackers) lives in a local `Core` for
+//! the substep loop and every law is inlined, so the loop runs out of registers.
 //!
 //! ## Determinism
 //! Pure f64 arithmetic in a fixed order plus a seeded ChaCha8 noise stream: the same model,
