@@ -332,7 +332,7 @@ impl Plant {
 
     /// Mechanical energy: kinetic + transmission/stage springs + environment spring (J).
     /// Dissipative effects are not included; with no losses and no input it is conserved up
-    /// to the integrator's O(ω·h) oscillation.
+    /// to the integrator's O((ω·h)²) oscillation.
     pub fn energy(&self) -> f64 {
         let m = &self.mech;
         let [x0, x1, x2] = self.x;
