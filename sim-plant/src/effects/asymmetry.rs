@@ -1,0 +1,55 @@
+//! Direction asymmetry of friction: the positive direction has extra Coulomb, stiction and
+//! viscous friction (negative values = less). Thesis §3.2: "direction-dependent τs±, τc±, B±";
+//! every row of Table 4.1 differs by direction (HD stiction +8/−12 N·m); thesis-notes §7.5.
+//!
+//! With `coulomb.torque = τc⁻` and `asymmetry.coulomb_extra = τc⁺ − τc⁻`, the friction is
+//! `τc⁺` moving positive and `τc⁻` moving negative.
+//!
+//! Fingerprint: `[step_ε(v), max(v, 0)]` with `step_ε(v) = (1 + sign_ε(v))/2` — the residual
+//! mean differs between ± motion, and the viscous slope differs.
+
+use super::signal::smooth_sign;
+use super::{EffectLaws, Shape, Trajectory};
+
+/// One-line description and fingerprint.
+pub const DESCRIBE: &str = "direction-dependent friction (extra Coulomb/stiction/viscous in the \
+     + direction); residual mean and slope differ between + and − motion";
+
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["coulomb_extra", "viscous_extra"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
+
+crate::define_params! {
+    /// Extra Coulomb level in the positive direction, τc⁺ − τc⁻ (N·m).
+    coulomb_extra: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
+    /// Extra viscous coefficient in the positive direction, B⁺ − B⁻ (N·m·s/rad).
+    viscous_extra: "N·m·s/rad" = 0.0, [-1e6, 1e6], Amplitude(1);
+    /// Extra stiction excess in the positive direction (N·m); dynamics only.
+    stiction_extra: "N·m" = 0.0, [-1e6, 1e6], Setting;
+}
+
+/// Shift the positive branch of the friction curve (additively; [`EffectLaws::finalize`]
+/// clamps the sums at zero once every effect is installed, so the order does not matter).
+pub fn install(p: &Params, laws: &mut EffectLaws) {
+    let f = &mut laws.friction;
+    f.coulomb_pos += p.coulomb_extra.value;
+    f.viscous_pos += p.viscous_extra.value;
+    f.excess_pos += p.stiction_extra.value;
+}
+
+/// `[step_ε(v), max(v, 0)]`.
+pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
+    let v = &traj.velocity[..traj.len()];
+    let eps = shape.sign_epsilon;
+    vec![
+        v.iter().map(|&v| 0.5 * (1.0 + smooth_sign(v, eps))).collect(),
+        v.iter().map(|&v| v.max(0.0)).collect(),
+    ]
+}
+
+/// Same sign-smoothing grid as Coulomb.
+pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
+    super::coulomb::sign_epsilon_grid(traj)
+}

@@ -1,0 +1,383 @@
+//! The library of physical effects, shared by the simulator, the fitter and the diagnosis.
+//!
+//! One module per effect. Each module holds
+//! * `DESCRIBE` — what the effect is physically and what it leaves in a residual
+//!   (thesis-notes §7, Schempf 1990 §3.2 / §4);
+//! * `Params` / `PARAMS` — its parameters with units, defaults and roles ([`ParamSpec`]);
+//! * `install` — its contribution to the dynamics, written into [`EffectLaws`], the slots the
+//!   integrator evaluates (friction curve, transmission spring, actuator chain, periodic torques);
+//! * `fingerprint` / `shape_grid` — the regressor columns it adds to an inverse-dynamics
+//!   (equation-error) residual, and the nonlinear shapes worth searching.
+//!
+//! All effects are registered in ONE place, the `registry!` invocation below: adding an effect
+//! is one module plus one line there, which extends [`EffectKind`], [`EffectSet`] (the
+//! `[effects]` section of a model file), [`fingerprint`], [`shape_grid`] and installation.
+//! The module's `install` writes into an existing slot of [`EffectLaws`] (friction curve,
+//! spring, actuator chain, periodic torques) or pushes an [`AdditiveTorque`] — a torque law on
+//! the motor or output node that the integrator sums — so the integrator needs no change.
+//!
+//! A new module provides: `DESCRIBE`, `AMPLITUDES` (names of its fingerprint columns'
+//! amplitudes), `SIGN` (admissible sign of the first), a `define_params!` table, and
+//! `install`, `fingerprint`, `shape_grid`.
+//!
+//! ## Sign convention
+//! Every effect is written as a *resisting* torque `R` in the axis equation
+//! `J·a = input − Σ R`, so an inverse-dynamics residual `r = input − model_input` of a model
+//! missing the effect equals `R`, and the fingerprint columns are a basis of `R`.
+
+pub mod laws;
+pub mod signal;
+
+pub use laws::{
+    ActuatorLaw, AdditiveTorque, EffectLaws, FrictionLaw, Node, PeriodicTorque, SpringLaw,
+};
+
+use crate::param::ParamSpec;
+
+/// A uniformly sampled trajectory in SI units, referred to the axis being modelled
+/// (rotary: N·m, rad, rad/s; linear: N, m, m/s — the math is the same).
+#[derive(Clone, Copy, Debug)]
+pub struct Trajectory<'a> {
+    /// Sample period (s).
+    pub dt: f64,
+    /// Applied torque/force.
+    pub input: &'a [f64],
+    /// Position.
+    pub position: &'a [f64],
+    /// Velocity.
+    pub velocity: &'a [f64],
+    /// Acceleration.
+    pub acceleration: &'a [f64],
+}
+
+impl Trajectory<'_> {
+    /// Number of samples (the shortest of the four series).
+    pub fn len(&self) -> usize {
+        self.input
+            .len()
+            .min(self.position.len())
+            .min(self.velocity.len())
+            .min(self.acceleration.len())
+    }
+
+    /// Whether the trajectory has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Largest |velocity| (0 for an empty trajectory).
+    pub fn max_abs_velocity(&self) -> f64 {
+        self.velocity[..self.len()]
+            .iter()
+            .fold(0.0, |m, v| m.max(v.abs()))
+    }
+
+    /// Largest |input|.
+    pub fn max_abs_input(&self) -> f64 {
+        self.input[..self.len()]
+            .iter()
+            .fold(0.0, |m, v| m.max(v.abs()))
+    }
+}
+
+/// Shape parameters that make a fingerprint linear in its amplitude(s). Each effect reads only
+/// the fields it needs (listed per field). Defaults are sensible for output-referred rotary
+/// data of the thesis's joints (velocities ~0.01–1 rad/s, torques ~1–100 N·m). Field names
+/// follow the workbench's usage.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Shape {
+    /// Coulomb, asymmetry, stribeck, backlash (velocity trigger): |v| below which sign(v) is
+    /// replaced by v/ε (a deadbanded sign: measured velocity near zero is mostly quantisation
+    /// noise). Units of velocity.
+    pub sign_epsilon: f64,
+    /// Stribeck: characteristic velocity vs of the stiction→Coulomb transition.
+    pub stribeck_velocity: f64,
+    /// Stribeck: exponent δ in exp(−(|v|/vs)^δ) (1 = exponential, 2 = Gaussian).
+    pub stribeck_exponent: f64,
+    /// Ripple: spatial period in units of the trajectory's position (tooth / lobe / roller
+    /// spacing at the output).
+    pub ripple_period: f64,
+    /// Cogging: spatial period in units of the trajectory's position, 2π/(cycles·N) rad for
+    /// output-referred data; 0 = unknown (the fingerprint is then empty: not testable).
+    pub cogging_period: f64,
+    /// Backlash: total width of the dead zone, position units.
+    pub backlash_width: f64,
+    /// Backlash: what makes the transmission cross its gap. `false`: velocity reversal (a
+    /// friction-dominated load, the thesis's stiffness/backdrive tests); `true`: sign change
+    /// of the input (an inertia-dominated load, whose transmitted torque follows the input).
+    pub backlash_on_input: bool,
+    /// Deadband: half-width of the input dead zone, input units.
+    pub deadband_width: f64,
+    /// Deadband (torque-constant nonlinearity): input scale the nonlinearity is normalised to
+    /// (the actuator's maximum), input units.
+    pub input_scale: f64,
+    /// Quantization: step of the input (D/A) quantiser, input units; 0 = none.
+    pub quantum: f64,
+    /// Delay: the delay τs (s) the column is built for, (u(t) − u(t − τs))/τs; its amplitude
+    /// is the delay and equals τs at the best shape. 0 = the derivative u̇ (small delays).
+    pub delay: f64,
+    /// Compliance, delay: length (samples) of the moving average that smooths signals before
+    /// they are differentiated.
+    pub smoothing: usize,
+}
+
+impl Default for Shape {
+    fn default() -> Self {
+        Self {
+            sign_epsilon: 1e-3,
+            stribeck_velocity: 0.05,
+            stribeck_exponent: 2.0,
+            ripple_period: std::f64::consts::TAU / 100.0,
+            cogging_period: 0.0,
+            backlash_width: 0.01,
+            backlash_on_input: false,
+            deadband_width: 0.05,
+            input_scale: 1.0,
+            quantum: 0.0,
+            delay: 0.0,
+            smoothing: 5,
+        }
+    }
+}
+
+/// Declares every effect once: enum variant ⇒ module. Generates [`EffectKind`], its name
+/// table, [`EffectSet`] and the dispatchers.
+macro_rules! registry {
+    ($( $(#[doc = $doc:literal])* $variant:ident => $module:ident, )*) => {
+        $( $(#[doc = $doc])* pub mod $module; )*
+
+        /// Vocabulary shared by simulator, fitter and diagnosis (lowercase names are the
+        /// CLI/JSON names).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "lowercase")]
+        pub enum EffectKind { $( $(#[doc = $doc])* $variant, )* }
+
+        const EFFECT_COUNT: usize = [$(stringify!($variant)),*].len();
+
+        impl EffectKind {
+            /// Every effect, in declaration order.
+            pub const ALL: [EffectKind; EFFECT_COUNT] = [$(EffectKind::$variant),*];
+
+            /// Lowercase name used in model files, the CLI and JSON.
+            pub fn name(self) -> &'static str {
+                match self { $( EffectKind::$variant => stringify!($module), )* }
+            }
+
+            /// Inverse of [`EffectKind::name`].
+            pub fn from_name(s: &str) -> Option<Self> {
+                match s { $( stringify!($module) => Some(EffectKind::$variant), )* _ => None }
+            }
+
+            /// One-line physical description and fingerprint in words.
+            pub fn describe(self) -> &'static str {
+                match self { $( EffectKind::$variant => $module::DESCRIBE, )* }
+            }
+
+            /// The effect's parameters (name, unit, default, role).
+            pub fn params(self) -> &'static [ParamSpec] {
+                match self { $( EffectKind::$variant => $module::PARAMS, )* }
+            }
+
+            /// Names of the amplitudes of the fingerprint columns, one per column, in order.
+            /// Where a column's amplitude is a model parameter it has that parameter's name
+            /// (see [`EffectKind::params`], role `Amplitude(i)`).
+            pub fn param_names(self) -> &'static [&'static str] {
+                match self { $( EffectKind::$variant => $module::AMPLITUDES, )* }
+            }
+
+            /// Physically admissible sign of the *first* amplitude in the convention
+            /// r = input − model_input = Σ θ·column, or `None` if either sign is physical.
+            /// Friction, delay, deadband and unseen quantisation are positive; compliance seen
+            /// from a motor-side sensor is negative. A fit of the wrong sign is not evidence
+            /// for the effect (usually errors-in-variables bias from noisy derivatives).
+            pub fn admissible_sign(self) -> Option<f64> {
+                match self { $( EffectKind::$variant => $module::SIGN, )* }
+            }
+        }
+
+        /// The `[effects]` section of a model file: which effects are present, with their
+        /// parameters. Absent = the effect is not in the model.
+        #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct EffectSet {
+            $(
+                #[allow(missing_docs)]
+                #[serde(default, skip_serializing_if = "Option::is_none")]
+                pub $module: Option<$module::Params>,
+            )*
+        }
+
+        impl EffectSet {
+            /// Kinds present, in [`EffectKind::ALL`] order.
+            pub fn kinds(&self) -> Vec<EffectKind> {
+                let mut v = Vec::new();
+                $( if self.$module.is_some() { v.push(EffectKind::$variant); } )*
+                v
+            }
+
+            /// Whether `kind` is present.
+            pub fn contains(&self, kind: EffectKind) -> bool {
+                match kind { $( EffectKind::$variant => self.$module.is_some(), )* }
+            }
+
+            /// Add `kind` with its default parameters (no-op if present).
+            pub fn insert_default(&mut self, kind: EffectKind) {
+                match kind { $( EffectKind::$variant => {
+                    if self.$module.is_none() { self.$module = Some(Default::default()); }
+                } )* }
+            }
+
+            /// Remove `kind`.
+            pub fn remove(&mut self, kind: EffectKind) {
+                match kind { $( EffectKind::$variant => self.$module = None, )* }
+            }
+
+            /// Parameters of `kind` paired with their specs (empty if absent).
+            pub fn params(&self, kind: EffectKind) -> Vec<(&'static ParamSpec, &crate::param::Param)> {
+                match kind { $( EffectKind::$variant =>
+                    self.$module.as_ref().map(|p| p.entries()).unwrap_or_default(), )* }
+            }
+
+            /// Mutable parameters of `kind` (empty if absent).
+            pub fn params_mut(&mut self, kind: EffectKind) -> Vec<(&'static ParamSpec, &mut crate::param::Param)> {
+                match kind { $( EffectKind::$variant =>
+                    self.$module.as_mut().map(|p| p.entries_mut()).unwrap_or_default(), )* }
+            }
+
+            /// Write every present effect's contribution into `laws`, then finalize.
+            pub fn install(&self, laws: &mut EffectLaws) {
+                $( if let Some(p) = &self.$module { $module::install(p, laws); } )*
+                laws.finalize();
+            }
+        }
+
+        /// Regressor columns this effect would add to an inverse-dynamics (equation-error)
+        /// residual r = input − model_input: each column is in input units per unit of a
+        /// linear amplitude parameter (see each module for the derivation).
+        pub fn fingerprint(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
+            match kind { $( EffectKind::$variant => $module::fingerprint(traj, shape), )* }
+        }
+
+        /// Candidate shapes to search (e.g. a log-spaced grid of Stribeck velocities, ripple
+        /// periods). Always non-empty.
+        pub fn shape_grid(kind: EffectKind, traj: &Trajectory) -> Vec<Shape> {
+            match kind { $( EffectKind::$variant => $module::shape_grid(traj), )* }
+        }
+    };
+}
+
+registry! {
+    /// Constant resisting torque (bias, amplifier offset).
+    Offset => offset,
+    /// Viscous friction ∝ velocity.
+    Viscous => viscous,
+    /// Coulomb (dry, kinetic) friction, constant magnitude opposing motion.
+    Coulomb => coulomb,
+    /// Direction asymmetry of friction (extra friction in the positive direction).
+    Asymmetry => asymmetry,
+    /// Stiction above Coulomb and the Stribeck transition between them.
+    Stribeck => stribeck,
+    /// Backlash: a dead zone of lost motion in the transmission.
+    Backlash => backlash,
+    /// Transmission compliance with soft-zone / stiffening.
+    Compliance => compliance,
+    /// Position-periodic transmission ripple (tooth / lobe / roller spacing).
+    Ripple => ripple,
+    /// Motor cogging / torque ripple, periodic in rotor angle.
+    Cogging => cogging,
+    /// Gravity on the output, m·g·l·sin(q + φ).
+    Gravity => gravity,
+    /// Torque-constant nonlinearity and small input deadband of the actuator.
+    Deadband => deadband,
+    /// Transport delay of the actuator command.
+    Delay => delay,
+    /// Quantisation of the input (D/A steps) and measurement fuzz.
+    Quantization => quantization,
+}
+
+/// The default shape for `kind` given a trajectory: the middle of its [`shape_grid`].
+pub fn default_shape(kind: EffectKind, traj: &Trajectory) -> Shape {
+    let mut grid = shape_grid(kind, traj);
+    let mid = grid.len() / 2;
+    grid.swap_remove(mid)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_are_lowercase() {
+        assert_eq!(EffectKind::ALL.len(), 13);
+        for k in EffectKind::ALL {
+            assert_eq!(EffectKind::from_name(k.name()), Some(k));
+            assert_eq!(k.name(), k.name().to_lowercase());
+            let json = format!("\"{}\"", k.name());
+            let back: EffectKind = serde_json_like(&json);
+            assert_eq!(back, k);
+            assert!(!k.describe().is_empty());
+            for p in k.params() {
+                assert!(
+                    p.min <= p.default && p.default <= p.max,
+                    "{}.{}",
+                    k.name(),
+                    p.name
+                );
+            }
+        }
+        assert_eq!(EffectKind::from_name("nonsense"), None);
+        assert_eq!(EffectKind::Quantization.name(), "quantization");
+    }
+
+    /// Deserialize through toml (the crate has no JSON dependency): `k = "name"`.
+    fn serde_json_like(quoted: &str) -> EffectKind {
+        #[derive(serde::Deserialize)]
+        struct W {
+            k: EffectKind,
+        }
+        toml::from_str::<W>(&format!("k = {quoted}")).unwrap().k
+    }
+
+    #[test]
+    fn every_fingerprint_has_trajectory_length_and_every_grid_is_nonempty() {
+        let n = 500;
+        let dt = 1e-3;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let q: Vec<f64> = t.iter().map(|t| (3.0 * t).sin()).collect();
+        let v: Vec<f64> = t.iter().map(|t| 3.0 * (3.0 * t).cos()).collect();
+        let a: Vec<f64> = t.iter().map(|t| -9.0 * (3.0 * t).sin()).collect();
+        let u: Vec<f64> = a.iter().zip(&v).map(|(a, v)| 0.1 * a + 0.5 * v).collect();
+        let traj = Trajectory {
+            dt,
+            input: &u,
+            position: &q,
+            velocity: &v,
+            acceleration: &a,
+        };
+        for k in EffectKind::ALL {
+            let grid = shape_grid(k, &traj);
+            assert!(!grid.is_empty(), "{}", k.name());
+            for shape in grid.iter().take(3) {
+                let cols = fingerprint(k, &traj, shape);
+                assert!(!cols.is_empty(), "{}", k.name());
+                for c in &cols {
+                    assert_eq!(c.len(), n, "{}", k.name());
+                    assert!(c.iter().all(|x| x.is_finite()), "{}", k.name());
+                }
+                let amps = k
+                    .params()
+                    .iter()
+                    .filter(|p| matches!(p.role, crate::param::Role::Amplitude(_)))
+                    .count();
+                // Either every column is one named amplitude parameter, or the amplitude is a
+                // derived combination documented in the module (backlash, compliance).
+                assert!(
+                    amps == 0 || amps == cols.len(),
+                    "{}: amplitude params vs columns",
+                    k.name()
+                );
+            }
+        }
+    }
+}

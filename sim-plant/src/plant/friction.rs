@@ -1,0 +1,87 @@
+//! The friction node's velocity update with a proper stick state (thesis §3.2 friction,
+//! §2.11 breakaway; the Karnopp idea of a zero-velocity band is replaced by an exact stick
+//! flag because the integrator can clamp velocity to exactly 0).
+//!
+//! * Stuck (v = 0): if the non-friction torque τ is within the breakaway level for its
+//!   direction, friction cancels it exactly and the node stays at v = 0 — no chattering sign().
+//!   Otherwise it breaks away; the kinetic friction at v → 0 equals the breakaway level (the
+//!   Stribeck curve is continuous), so motion starts smoothly.
+//! * Sliding: friction follows the sliding curve. If a substep would carry v through zero, the
+//!   node stops at v = 0 and sticks; the next substep's static check decides whether it stays
+//!   (friction cannot reverse motion by itself). This costs at most one substep of extra rest
+//!   at a genuine reversal.
+
+use crate::effects::FrictionLaw;
+
+/// Velocity after one substep and the resisting friction torque used (same sign as the
+/// motion it resists). `tau` is every other torque on the node; `h_over_i` is the substep
+/// divided by the node's inertia.
+#[inline(always)]
+pub fn advance(
+    v: f64,
+    stuck: &mut bool,
+    tau: f64,
+    h_over_i: f64,
+    law: &FrictionLaw,
+    dry: bool,
+) -> (f64, f64) {
+    if !dry {
+        let f = law.sliding(v);
+        return (v + h_over_i * (tau - f), f);
+    }
+    if *stuck {
+        let dir = if tau >= 0.0 { 1.0 } else { -1.0 };
+        let level = law.breakaway(dir);
+        if tau.abs() <= level {
+            return (0.0, tau);
+        }
+        *stuck = false;
+        let f = dir * level;
+        return (h_over_i * (tau - f), f);
+    }
+    let f = law.sliding(v);
+    let vn = v + h_over_i * (tau - f);
+    if vn * v <= 0.0 {
+        *stuck = true;
+        return (0.0, f);
+    }
+    (vn, f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn law() -> FrictionLaw {
+        FrictionLaw {
+            coulomb_pos: 1.0,
+            coulomb_neg: 1.0,
+            excess_pos: 0.5,
+            excess_neg: 0.5,
+            stribeck_velocity: 0.01,
+            stribeck_exponent: 2.0,
+            viscous_pos: 0.0,
+            viscous_neg: 0.0,
+            inv_stribeck_velocity: 100.0,
+        }
+    }
+
+    #[test]
+    fn holds_below_breakaway_and_releases_above() {
+        let mut stuck = true;
+        let (v, f) = advance(0.0, &mut stuck, 1.49, 1e-4, &law(), true);
+        assert_eq!((v, f), (0.0, 1.49));
+        assert!(stuck);
+        let (v, _) = advance(0.0, &mut stuck, -1.51, 1e-4, &law(), true);
+        assert!(v < 0.0 && !stuck);
+    }
+
+    #[test]
+    fn sliding_node_stops_instead_of_reversing() {
+        let mut stuck = false;
+        // Moving slowly positive with no drive: friction would overshoot through zero.
+        let (v, _) = advance(1e-5, &mut stuck, 0.0, 1e-4, &law(), true);
+        assert_eq!(v, 0.0);
+        assert!(stuck);
+    }
+}
