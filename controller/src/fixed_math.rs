@@ -8,7 +8,7 @@
 //! | position | [`Counts`] = `i64` | encoder counts after multi-turn unwrap (motor encoder for x1, output encoder for x2) |
 //! | position error | `i32` | counts; an `i64` difference is clamped to `i32` and [`Flags::INPUT_CLAMPED`] is raised |
 //! | velocity | [`Vel`] = `I28F4` | counts/s, 4 fractional bits: 1/16 count/s = 1.7·10⁻⁴ rad/s at 2304 cpr, the resolution of the thesis's Sensorimotor velocity (1.8·10⁻⁴ rad/s, notes §1); range ±1.3·10⁸ counts/s (±58 000 rev/s at 2304 cpr, ±128 rev/s at 2²⁰ cpr) |
-//! | torque | [`Torque`] = `i32` | [`TORQUE_LSB_NM`] = 0.1 mN·m. Motor-side for commands; a force-sensor value is output-side in the same LSB (gains carry the 1/N) |
+//! | torque | [`Torque`] = `i32` | [`TORQUE_LSB_NM`] = 0.1 mN·m by default (`units::Scale::torque_lsb_nm` can choose another LSB; the laws are LSB-agnostic). Motor-side for commands; a force-sensor value is output-side in the same LSB (gains carry the 1/N) |
 //! | torque command | [`TorqueCmd`] = `i16` | 0.1 mN·m motor side, ±3.2767 N·m (the thesis motor is ≤ 2 N·m) |
 //!
 //! # Why a mantissa/shift gain
@@ -185,10 +185,12 @@ pub fn sat_i32(x: i64) -> (i32, bool) {
     }
 }
 
-/// Clamp to `[-lim, +lim]` (lim taken as |lim|); the bool is true if it clamped.
+/// Clamp to `[-lim, +lim]` (lim taken as |lim|, at most `i32::MAX`); the bool is true if it
+/// clamped.
 #[inline]
 pub fn clamp_sym(x: i64, lim: i32) -> (i32, bool) {
-    let l = i64::from(lim).wrapping_abs();
+    // |i32::MIN| is not an i32: treat it as i32::MAX.
+    let l = i64::from(lim).wrapping_abs().min(i64::from(i32::MAX));
     if x > l {
         (l as i32, true)
     } else if x < l.wrapping_neg() {
@@ -218,7 +220,7 @@ pub fn to_command(tau: Torque) -> (TorqueCmd, bool) {
 }
 
 /// A first-order low-pass `y += α(u − y)` in Q16 of its input unit. α is a `U1F15` fraction
-/// in (0, 1]. Used for force-rate filtering and impedance compensation (notes §2.3, §2.12:
+/// in (0, 1] (larger values are treated as 1). Used for force-rate filtering and impedance compensation (notes §2.3, §2.12:
 /// the thesis used digital differentiation plus low-pass filtering).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -237,17 +239,16 @@ impl LowPass {
     pub fn reset(&mut self, y: i32) {
         self.y_q16 = i64::from(y).wrapping_shl(16);
     }
-    /// One step; returns the filtered value rounded to input units.
+    /// One step; returns the filtered value rounded to input units. α is limited to 1.0
+    /// (its documented range): then |u − y| < 2³² LSB = 2⁴⁸ in Q16, × α ≤ 2¹⁵ stays < 2⁶³,
+    /// and y remains a convex combination of past inputs (|y| ≤ 2³¹).
     #[inline]
     pub fn step(&mut self, u: i32, alpha: Alpha) -> i32 {
-        // |u|,|y| < 2³¹ ⇒ diff < 2⁴⁸ (Q16); × α (< 2¹⁶) < 2⁶⁴ — too close, so clamp diff to 2⁴⁶.
         let u_q16 = i64::from(u).wrapping_shl(16);
-        let diff = u_q16
-            .saturating_sub(self.y_q16)
-            .clamp(-(1i64 << 46), 1i64 << 46);
-        let a = i64::from(alpha.to_bits());
+        let diff = u_q16.wrapping_sub(self.y_q16);
+        let a = i64::from(alpha.to_bits().min(1 << 15));
         let inc = round_shr(diff.wrapping_mul(a), 15);
-        self.y_q16 = self.y_q16.saturating_add(inc);
+        self.y_q16 = self.y_q16.wrapping_add(inc);
         sat_i32(round_shr(self.y_q16, 16)).0
     }
     /// Current value in input units.

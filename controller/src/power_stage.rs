@@ -33,9 +33,9 @@ pub enum StageCommand {
     Fault,
 }
 
-/// Which output failed.
+/// Which output failed. (`defmt::Format` is implemented by hand: embedded-hal's error kinds
+/// only support defmt 0.3.)
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PowerStageError {
     /// The PWM channel.
     Pwm(PwmErrorKind),
@@ -47,6 +47,19 @@ pub enum PowerStageError {
     Brake(PinErrorKind),
     /// `full_scale` was not positive.
     BadFullScale,
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for PowerStageError {
+    fn format(&self, f: defmt::Formatter) {
+        match self {
+            PowerStageError::Pwm(_) => defmt::write!(f, "PowerStageError::Pwm"),
+            PowerStageError::Direction(_) => defmt::write!(f, "PowerStageError::Direction"),
+            PowerStageError::Enable(_) => defmt::write!(f, "PowerStageError::Enable"),
+            PowerStageError::Brake(_) => defmt::write!(f, "PowerStageError::Brake"),
+            PowerStageError::BadFullScale => defmt::write!(f, "PowerStageError::BadFullScale"),
+        }
+    }
 }
 
 /// The adapter. `full_scale` is the torque (LSB) that corresponds to 100 % duty.

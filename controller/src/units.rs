@@ -21,6 +21,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
 
 use crate::fixed_math::{Alpha, Gain, Torque, GAIN_MAX_SHIFT, TORQUE_LSB_NM, VEL_FRAC_BITS};
+
 use crate::laws::{
     DamperConfig, Feedback, ForceConfig, ForceDamping, FrictionConfig, ImpCompConfig,
     ImpedanceConfig, InputDamping, PidConfig, PositionConfig, RippleError, RippleTable, RIPPLE_MAX,
@@ -133,12 +134,13 @@ fn round_f64(x: f64) -> f64 {
     }
 }
 
-/// N·m → torque LSB (`i32`, must not exceed `i16::MAX` for limits that reach the command).
-pub fn torque_lsb(what: &'static str, nm: f64) -> Result<Torque, UnitsError> {
+/// N·m → torque LSB of the scale (`i32`).
+pub fn torque_lsb(s: &Scale, what: &'static str, nm: f64) -> Result<Torque, UnitsError> {
+    s.check()?;
     if !nm.is_finite() {
         return Err(UnitsError::NotFinite { what });
     }
-    let v = round_f64(nm / TORQUE_LSB_NM);
+    let v = round_f64(nm / s.torque_lsb_nm);
     if v.abs() > 2147483647.0 {
         return Err(UnitsError::Overflow { what, value: v });
     }
@@ -146,8 +148,8 @@ pub fn torque_lsb(what: &'static str, nm: f64) -> Result<Torque, UnitsError> {
 }
 
 /// A torque limit that reaches the `i16` command: 0 < LSB ≤ 32767.
-pub fn torque_limit(what: &'static str, nm: f64) -> Result<Torque, UnitsError> {
-    let t = torque_lsb(what, nm)?;
+pub fn torque_limit(s: &Scale, what: &'static str, nm: f64) -> Result<Torque, UnitsError> {
+    let t = torque_lsb(s, what, nm)?;
     if t > i32::from(i16::MAX) {
         return Err(UnitsError::Overflow {
             what,
@@ -182,16 +184,20 @@ pub struct Scale {
     pub output_cpr: u32,
     /// Gear ratio N (motor rev per output rev).
     pub gear_ratio: f64,
+    /// Size of one torque LSB in N·m (the card's default: [`TORQUE_LSB_NM`] = 0.1 mN·m). All
+    /// torque-valued machine quantities (commands, limits, sensor values) are in this LSB.
+    pub torque_lsb_nm: f64,
 }
 
 impl Scale {
-    /// The thesis card: T = 1 ms, 2304 cpr, no output encoder, N as given.
+    /// The thesis card: T = 1 ms, 2304 cpr, no output encoder, N as given, 0.1 mN·m LSB.
     pub fn thesis(gear_ratio: f64) -> Self {
         Scale {
             period_s: 1.0e-3,
             motor_cpr: 2304,
             output_cpr: 0,
             gear_ratio,
+            torque_lsb_nm: TORQUE_LSB_NM,
         }
     }
 
@@ -204,6 +210,11 @@ impl Scale {
         }
         if !(self.gear_ratio.is_finite() && self.gear_ratio > 0.0) {
             return Err(UnitsError::BadScale { what: "gear_ratio" });
+        }
+        if !(self.torque_lsb_nm.is_finite() && self.torque_lsb_nm > 0.0) {
+            return Err(UnitsError::BadScale {
+                what: "torque_lsb_nm",
+            });
         }
         Ok(())
     }
@@ -251,7 +262,7 @@ pub fn stiffness_gain(
 ) -> Result<Gain, UnitsError> {
     gain_from_f64(
         what,
-        k * s.torque_factor(fb) * s.rad_per_count(fb)? / TORQUE_LSB_NM,
+        k * s.torque_factor(fb) * s.rad_per_count(fb)? / s.torque_lsb_nm,
     )
 }
 
@@ -264,7 +275,7 @@ pub fn damping_gain(
 ) -> Result<Gain, UnitsError> {
     gain_from_f64(
         what,
-        b * s.torque_factor(fb) * s.rad_s_per_vel_lsb(fb)? / TORQUE_LSB_NM,
+        b * s.torque_factor(fb) * s.rad_s_per_vel_lsb(fb)? / s.torque_lsb_nm,
     )
 }
 
@@ -292,12 +303,12 @@ pub fn position_config(s: &Scale, g: &PositionSi) -> Result<PositionConfig, Unit
     let kd = damping_gain(s, fb, "be", g.be)?;
     let ki_t = gain_from_f64(
         "ki",
-        g.ki * s.period_s * s.torque_factor(fb) * s.rad_per_count(fb)? / TORQUE_LSB_NM * 65536.0,
+        g.ki * s.period_s * s.torque_factor(fb) * s.rad_per_count(fb)? / s.torque_lsb_nm * 65536.0,
     )?;
     let i_limit = if g.ki == 0.0 {
         0
     } else {
-        torque_limit("i_limit", g.i_limit_nm)?
+        torque_limit(s, "i_limit", g.i_limit_nm)?
     };
     Ok(PositionConfig {
         pid: PidConfig {
@@ -305,7 +316,7 @@ pub fn position_config(s: &Scale, g: &PositionSi) -> Result<PositionConfig, Unit
             kd,
             ki_t,
             i_limit,
-            tau_max: torque_limit("tau_max", g.tau_max_nm)?,
+            tau_max: torque_limit(s, "tau_max", g.tau_max_nm)?,
         },
         feedback: fb,
     })
@@ -315,7 +326,7 @@ pub fn position_config(s: &Scale, g: &PositionSi) -> Result<PositionConfig, Unit
 pub fn damper_config(s: &Scale, b: f64, tau_max_nm: f64) -> Result<DamperConfig, UnitsError> {
     Ok(DamperConfig {
         b: damping_gain(s, Feedback::Colocated, "b_des", b)?,
-        tau_max: torque_limit("tau_max", tau_max_nm)?,
+        tau_max: torque_limit(s, "tau_max", tau_max_nm)?,
     })
 }
 
@@ -382,7 +393,7 @@ pub fn force_config(s: &Scale, g: &ForceSi) -> Result<ForceConfig, UnitsError> {
     let i_limit = if g.ki == 0.0 {
         0
     } else {
-        torque_limit("i_limit", g.i_limit_nm)?
+        torque_limit(s, "i_limit", g.i_limit_nm)?
     };
     Ok(ForceConfig {
         pid: PidConfig {
@@ -390,7 +401,7 @@ pub fn force_config(s: &Scale, g: &ForceSi) -> Result<ForceConfig, UnitsError> {
             kd,
             ki_t,
             i_limit,
-            tau_max: torque_limit("tau_max", g.tau_max_nm)?,
+            tau_max: torque_limit(s, "tau_max", g.tau_max_nm)?,
         },
         damping,
     })
@@ -438,7 +449,7 @@ pub fn impedance_config(s: &Scale, g: &ImpedanceSi) -> Result<ImpedanceConfig, U
         ke: stiffness_gain(s, g.feedback, "ke", g.ke)?,
         be: damping_gain(s, g.feedback, "be", g.be)?,
         km: gain_from_f64("km", g.km / s.gear_ratio)?,
-        tau_max: torque_limit("tau_max", g.tau_max_nm)?,
+        tau_max: torque_limit(s, "tau_max", g.tau_max_nm)?,
         feedback: g.feedback,
     })
 }
@@ -478,8 +489,8 @@ pub fn friction_config(s: &Scale, g: &FrictionSi) -> Result<FrictionConfig, Unit
         return Err(UnitsError::OutOfRange { what: "undercomp" });
     }
     let ramp_vel = g.ramp_rad_s / s.rad_s_per_vel_lsb(Feedback::Colocated)?;
-    let pos = torque_lsb("tau_c_pos", g.tau_c_pos)?;
-    let neg = torque_lsb("tau_c_neg", g.tau_c_neg)?;
+    let pos = torque_lsb(s, "tau_c_pos", g.tau_c_pos)?;
+    let neg = torque_lsb(s, "tau_c_neg", g.tau_c_neg)?;
     Ok(FrictionConfig {
         tau_c_pos: pos,
         tau_c_neg: neg,
@@ -487,7 +498,7 @@ pub fn friction_config(s: &Scale, g: &FrictionSi) -> Result<FrictionConfig, Unit
         slope_neg: gain_from_f64("tau_c_neg/ramp", f64::from(neg) / ramp_vel)?,
         viscous: damping_gain(s, Feedback::Colocated, "viscous", g.viscous)?,
         undercomp: Alpha::from_bits(round_f64(g.undercomp * 32768.0) as u16),
-        limit: torque_limit("limit", g.limit_nm)?,
+        limit: torque_limit(s, "limit", g.limit_nm)?,
     })
 }
 
@@ -514,21 +525,21 @@ pub fn imp_comp_config(s: &Scale, g: &ImpCompSi) -> Result<ImpCompConfig, UnitsE
         Feedback::NonColocated => s.rad_per_count(Feedback::NonColocated)?,
     };
     Ok(ImpCompConfig {
-        kd: gain_from_f64("kd_out", g.kd_out * rad_out_per_count / TORQUE_LSB_NM)?,
+        kd: gain_from_f64("kd_out", g.kd_out * rad_out_per_count / s.torque_lsb_nm)?,
         gain: gain_from_f64("kc", g.kc / s.gear_ratio)?,
         alpha: lowpass_alpha(s, g.cutoff_hz)?,
-        limit: torque_limit("limit", g.limit_nm)?,
+        limit: torque_limit(s, "limit", g.limit_nm)?,
     })
 }
 
 /// Ripple table from corrections in N·m (motor side) over `period_counts` motor counts.
-pub fn ripple_table(period_counts: u32, nm: &[f64]) -> Result<RippleTable, UnitsError> {
+pub fn ripple_table(s: &Scale, period_counts: u32, nm: &[f64]) -> Result<RippleTable, UnitsError> {
     if nm.len() > RIPPLE_MAX {
         return Err(UnitsError::Ripple(RippleError::Length));
     }
     let mut buf = [0i16; RIPPLE_MAX];
     for (slot, v) in buf.iter_mut().zip(nm.iter()) {
-        let t = torque_lsb("ripple", *v)?;
+        let t = torque_lsb(s, "ripple", *v)?;
         *slot = i16::try_from(t).map_err(|_| UnitsError::Overflow {
             what: "ripple",
             value: f64::from(t),
@@ -569,7 +580,7 @@ pub fn inertia_gain(s: &Scale, inertia: f64) -> Result<Gain, UnitsError> {
     let rad = s.rad_per_count(Feedback::Colocated)?;
     gain_from_f64(
         "inertia",
-        inertia * rad / (s.period_s * s.period_s) / TORQUE_LSB_NM,
+        inertia * rad / (s.period_s * s.period_s) / s.torque_lsb_nm,
     )
 }
 

@@ -73,7 +73,7 @@ pub fn conversion(unit: &str, canonical: &str) -> Result<f64, String> {
     match ALIASES.iter().find(|al| al.spelling == unit) {
         Some(al) if al.canonical == canonical => Ok(al.factor),
         Some(al) => Err(format!(
-            "unit `{unit}` is a {} quantity but this parameter is in {canonical}",
+            "unit `{unit}` measures {}, but this parameter is in {canonical}",
             al.canonical
         )),
         None => Err(format!(
@@ -125,7 +125,7 @@ mod tests {
         assert!((conversion("deg", "rad").unwrap() - PI / 180.0).abs() < 1e-15);
         assert!(conversion("N·m", "rad")
             .unwrap_err()
-            .contains("N·m quantity"));
+            .contains("measures N·m"));
         assert!(conversion("furlong", "rad")
             .unwrap_err()
             .contains("unknown unit"));

@@ -302,6 +302,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         motor_cpr: u32::try_from(cpr.max(1)).unwrap_or(1),
         output_cpr: 0,
         gear_ratio: 1.0,
+        torque_lsb_nm: crate::fixed_math::TORQUE_LSB_NM,
     };
     let observer = units::observer_config(
         &observer_scale(s.raw(p::MOTOR_COUNTS_PER_REV)),

@@ -32,12 +32,16 @@ use crate::laws::{JointState, Measurements, Setpoint};
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::{
     self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode, NodeId,
-    ParamResponse, ParamStatus, RejectCounters, ReplyTo, State, TelemetryMotion, TelemetryTorque,
+    ParamCommit, ParamResponse, ParamStatus, RejectCounters, ReplyTo, State, TelemetryMotion,
+    TelemetryTorque,
 };
 use crate::sensing::{TrackingObserver, Unwrapper};
 
 pub use config::{CardConfig, ConfigError};
-pub use store::{ParamStore, Staging};
+pub use store::ParamStore;
+
+/// The card's staging area (the protocol's commit rules, `proto::staging`).
+pub type Staging = crate::proto::staging::Staging<{ p::STAGING_CAPACITY }>;
 
 /// Frames the card can queue between two `poll_transmit` drains. A tick queues at most a
 /// fault, a telemetry frame and a heartbeat; parameter replies come one per received frame.
@@ -281,20 +285,16 @@ impl Card {
             }
             Message::ParamWrite(w) => {
                 self.feed_watchdog(now_us);
-                let status = match store::check_write(w.param_id, w.value, self.driving()) {
-                    Ok(()) => self.staging.push(w.set_seq, w.param_id, w.value),
-                    Err(e) => Err(e),
-                };
+                let status = self.staging.write(&w, self.driving());
                 self.reply(ReplyTo::Write, status, w.set_seq, w.param_id, w.value);
             }
             Message::ParamCommit(c) => {
                 self.feed_watchdog(now_us);
-                let (status, param) = match self.commit(c.set_seq, c.count, c.crc) {
-                    Ok(()) => (Ok(()), 0),
-                    Err((s, param)) => (Err(s), param),
-                };
-                let crc = i32::from_le_bytes(c.crc.to_le_bytes());
-                self.reply(ReplyTo::Commit, status, c.set_seq, param, crc);
+                let resp = self.commit(&c);
+                if resp.status != ParamStatus::Ok {
+                    self.counters.record_refused();
+                }
+                self.push(Message::ParamResponse(resp));
             }
             Message::ParamRead(r) => {
                 self.feed_watchdog(now_us);
@@ -352,45 +352,40 @@ impl Card {
         }
     }
 
-    /// Validates a commit against the staged set and builds its configuration; the result is
-    /// applied at the next cycle boundary.
-    fn commit(&mut self, seq: u8, count: u8, crc: u32) -> Result<(), (ParamStatus, u16)> {
-        let r = self.staging.matches(seq, count, crc);
-        if let Err(s) = r {
-            self.staging.clear();
-            return Err((s, 0));
-        }
+    /// Validates a commit against the staged set (`proto::staging` rules), re-checks access
+    /// in the current state, and builds the configuration; the result is applied at the next
+    /// cycle boundary. Nothing changes unless every check passes.
+    fn commit(&mut self, c: &ParamCommit) -> ParamResponse {
         let driving = self.driving();
-        for &(id, v) in self.staging.entries() {
-            if let Err(s) = store::check_write(id, v, driving) {
-                self.staging.clear();
-                return Err((s, id));
-            }
-        }
-        let base = match &self.pending {
-            Some(Pending { store: Some(s), .. }) => s.clone(),
-            _ => self.store.clone(),
-        };
-        let next = self.staging.applied_to(&base);
+        let base = self.pending_store().clone();
         let mode = if self.state == State::Enabled {
             self.mode
         } else {
             None
         };
-        let built = config::build(&next, mode);
-        self.staging.clear();
-        match built {
-            Ok(config) => {
-                let mut next = next;
-                next.set_unchecked(p::LAST_SET_SEQ, i32::from(seq));
-                self.pending = Some(Pending {
-                    store: Some(next),
-                    config,
-                });
-                Ok(())
+        let mut built = None;
+        let resp = self.staging.commit(c, |entries| {
+            for &(id, v) in entries {
+                store::check_write(id, v, driving).map_err(|s| (s, id))?;
             }
-            Err(e) => Err((ParamStatus::InconsistentSet, e.param())),
+            let mut next = base;
+            next.apply(entries);
+            match config::build(&next, mode) {
+                Ok(cfg) => {
+                    built = Some((next, cfg));
+                    Ok(())
+                }
+                Err(e) => Err((ParamStatus::InconsistentSet, e.param())),
+            }
+        });
+        if let Some((mut next, config)) = built {
+            next.set_unchecked(p::LAST_SET_SEQ, i32::from(c.set_seq));
+            self.pending = Some(Pending {
+                store: Some(next),
+                config,
+            });
         }
+        resp
     }
 
     fn control(&mut self, cw: ControlWord) {

@@ -1,13 +1,13 @@
 //! The card's parameter memory: one raw `i32` per id of the protocol's parameter table
-//! (`proto::params::TABLE` is the single source of truth for ids, ranges and defaults), and
-//! the staging area that a `ParamWrite` fills and a `ParamCommit` applies atomically.
+//! (`proto::params::TABLE` is the single source of truth for ids, ranges and defaults). The
+//! staging area a `ParamWrite` fills and a `ParamCommit` applies is `proto::staging`.
 //!
 //! Why raw values: the wire carries raw integers already in machine units, so the store is a
 //! flat array the runtime can range-check against the table, read back for `ParamRead`, and
 //! turn into typed law configurations ([`super::config`]) only at commit time.
 
-use crate::proto::params::{self, ParamDef, STAGING_CAPACITY, TABLE};
-use crate::proto::{ParamStatus, SetChecksum};
+use crate::proto::params::{self, ParamDef, TABLE};
+use crate::proto::ParamStatus;
 
 /// Number of raw slots: the sum of all table rows' `count`.
 pub const SLOTS: usize = slot_count();
@@ -88,6 +88,14 @@ impl ParamStore {
         }
     }
 
+    /// Overlays `entries` (in order, so a later write of the same id wins). Values are not
+    /// checked here: entries come from a staging that checked them.
+    pub fn apply(&mut self, entries: &[(u16, i32)]) {
+        for &(id, v) in entries {
+            self.set_unchecked(id, v);
+        }
+    }
+
     /// `n` consecutive raw values starting at `id` (the ripple table), into `out`.
     pub fn run(&self, id: u16, out: &mut [i32]) {
         for (k, o) in out.iter_mut().enumerate() {
@@ -106,79 +114,6 @@ pub fn check_write(id: u16, value: i32, driving: bool) -> Result<(), ParamStatus
         _ => {}
     }
     def.check(value)
-}
-
-/// A staged (not yet applied) parameter set: entries in arrival order, their running
-/// checksum, and the set sequence number they belong to.
-#[derive(Clone, Debug, Default)]
-pub struct Staging {
-    entries: heapless::Vec<(u16, i32), STAGING_CAPACITY>,
-    sum: SetChecksum,
-    seq: Option<u8>,
-}
-
-impl Staging {
-    /// Empty staging area.
-    pub fn new() -> Self {
-        Staging::default()
-    }
-
-    /// Drops everything staged.
-    pub fn clear(&mut self) {
-        self.entries.clear();
-        self.sum = SetChecksum::new();
-        self.seq = None;
-    }
-
-    /// Stages one write of set `seq`. A write with a different `seq` than the entries already
-    /// staged starts a new set (the old, never-committed one is discarded): a supervisor
-    /// that lost a commit simply starts over with a new sequence number.
-    pub fn push(&mut self, seq: u8, id: u16, value: i32) -> Result<(), ParamStatus> {
-        if self.seq != Some(seq) {
-            self.clear();
-            self.seq = Some(seq);
-        }
-        self.entries
-            .push((id, value))
-            .map_err(|_| ParamStatus::StagingFull)?;
-        self.sum.push(id, value);
-        Ok(())
-    }
-
-    /// Sequence number of the staged set.
-    pub fn seq(&self) -> Option<u8> {
-        self.seq
-    }
-
-    /// Entries in arrival order (later writes of the same id win when applied).
-    pub fn entries(&self) -> &[(u16, i32)] {
-        &self.entries
-    }
-
-    /// Whether a commit `(seq, count, crc)` matches exactly what is staged.
-    pub fn matches(&self, seq: u8, count: u8, crc: u32) -> Result<(), ParamStatus> {
-        match self.seq {
-            None => return Err(ParamStatus::NothingStaged),
-            Some(s) if s != seq => return Err(ParamStatus::SequenceMismatch),
-            Some(_) => {}
-        }
-        if self.sum.count() != count {
-            return Err(ParamStatus::CountMismatch);
-        }
-        if self.sum.crc() != crc {
-            return Err(ParamStatus::ChecksumMismatch);
-        }
-        Ok(())
-    }
-
-    /// The store that results from applying the staged entries on top of `base`.
-    pub fn applied_to(&self, base: &ParamStore) -> ParamStore {
-        let mut next = base.clone();
-        for &(id, v) in self.entries.iter() {
-            next.set_unchecked(id, v);
-        }
-        next
-    }
 }
 
 #[cfg(test)]
@@ -214,40 +149,5 @@ mod tests {
             Err(ParamStatus::NotAllowedInState)
         );
         assert_eq!(check_write(0x7777, 0, false), Err(ParamStatus::UnknownId));
-    }
-
-    #[test]
-    fn staging_commit_match_and_new_seq_restarts() {
-        let mut st = Staging::new();
-        st.push(1, KE, 10).unwrap();
-        st.push(1, BE, 20).unwrap();
-        let sum = SetChecksum::of(&[(KE, 10), (BE, 20)]);
-        assert_eq!(st.matches(1, 2, sum.crc()), Ok(()));
-        assert_eq!(
-            st.matches(2, 2, sum.crc()),
-            Err(ParamStatus::SequenceMismatch)
-        );
-        assert_eq!(st.matches(1, 1, sum.crc()), Err(ParamStatus::CountMismatch));
-        assert_eq!(
-            st.matches(1, 2, sum.crc() ^ 1),
-            Err(ParamStatus::ChecksumMismatch)
-        );
-        assert_eq!(
-            Staging::new().matches(1, 0, 0),
-            Err(ParamStatus::NothingStaged)
-        );
-        st.push(2, KE, 11).unwrap();
-        assert_eq!(st.entries(), &[(KE, 11)]);
-        let next = st.applied_to(&ParamStore::new());
-        assert_eq!(next.get(KE), Ok(11));
-    }
-
-    #[test]
-    fn staging_capacity_is_bounded() {
-        let mut st = Staging::new();
-        for k in 0..STAGING_CAPACITY {
-            st.push(3, RIPPLE_TABLE, k as i32).unwrap();
-        }
-        assert_eq!(st.push(3, KE, 1), Err(ParamStatus::StagingFull));
     }
 }

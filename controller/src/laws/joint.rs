@@ -247,7 +247,9 @@ impl JointState {
         flags.set_if(sat, Flags::OUTPUT_SATURATED);
         if self.offset != 0 {
             flags |= Flags::TRANSFER_ACTIVE;
-            let mut d = self.offset.wrapping_shr(u32::from(cfg.transfer_shift));
+            let mut d = self
+                .offset
+                .wrapping_shr(u32::from(cfg.transfer_shift.min(30)));
             if d == 0 || cfg.transfer_shift == 0 {
                 d = if cfg.transfer_shift == 0 {
                     self.offset

@@ -1,4 +1,4 @@
-//! The PID core shared by position PD/PID (notes §2.2, [D] backward difference) and force
+//! The PID core shared by position PD/PID (notes §2.2, \[D\] backward difference) and force
 //! P/PD/PI/PID (§2.3, §2.6): `τ = Kp·e − Kd·r + I`, `I_k = I_{k−1} + Ki·T·e_k`.
 //!
 //! * `e` is the error (counts, or torque LSB for force), `r` the *measured* rate the D term acts
@@ -135,6 +135,11 @@ impl PidState {
             let i2 = i1.clamp(ilim.wrapping_neg(), ilim);
             flags.set_if(i2 != cand, Flags::INTEGRATOR_LIMITED);
             self.i_q16 = i2;
+        } else {
+            // A PD has no hidden bias: an integrator left over from an earlier PID gain set
+            // would otherwise stay frozen in the output forever. (Bumpless transfer into a PD
+            // goes through the decaying offset of `JointState` instead.)
+            self.i_q16 = 0;
         }
         let u = pd.saturating_add(round_shr(self.i_q16, 16));
         let (tau, sat) = clamp_sym(u, cfg.tau_max);

@@ -47,7 +47,39 @@ super::field::wire_enum! {
     }
 }
 
+/// Which way a kind travels relative to the card it names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Direction {
+    /// Consumed by the card whose node the id carries (from the sensor side or the
+    /// supervisor).
+    ToCard,
+    /// Produced by the card whose node the id carries.
+    FromCard,
+}
+
 impl Kind {
+    /// Direction of this kind: a card acts on `ToCard` frames addressed to its node (or
+    /// broadcast) and ignores everything else on the bus, including other cards' output.
+    pub const fn direction(self) -> Direction {
+        match self {
+            Kind::OutputEncoder
+            | Kind::Sensor
+            | Kind::SetpointMotion
+            | Kind::SetpointForce
+            | Kind::ControlWord
+            | Kind::ParamWrite
+            | Kind::ParamCommit
+            | Kind::ParamRead => Direction::ToCard,
+            Kind::Fault
+            | Kind::Actuator
+            | Kind::TelemetryMotion
+            | Kind::TelemetryTorque
+            | Kind::ParamResponse
+            | Kind::Heartbeat => Direction::FromCard,
+        }
+    }
+
     /// Whether node 0 (broadcast) is a valid address for this kind. Only the control word
     /// is: one frame can quick-stop or disable every joint at once. Everything else concerns
     /// exactly one card.

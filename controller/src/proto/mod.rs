@@ -32,6 +32,7 @@ pub mod scale;
 pub mod sensor;
 pub mod setpoint_force;
 pub mod setpoint_motion;
+pub mod staging;
 pub mod state;
 pub mod telemetry_motion;
 pub mod telemetry_torque;
@@ -40,7 +41,7 @@ pub use checksum::{Crc32, SetChecksum};
 pub use control_word::Command;
 pub use error::{DecodeError, Error, RejectCounters};
 pub use frame::RawFrame;
-pub use id::{Kind, NodeId};
+pub use id::{Direction, Kind, NodeId};
 pub use param_response::{ParamStatus, ReplyTo};
 pub use state::{FaultCode, LimitFlags, Mode, State};
 
@@ -66,6 +67,40 @@ pub const PROTOCOL_VERSION: u8 = 1;
 
 /// Largest data length of any message (classic CAN).
 pub const MAX_LEN: usize = 8;
+
+impl Kind {
+    /// The exact data length (DLC) of this kind; any other length is rejected.
+    pub const fn dlc(self) -> usize {
+        match self {
+            Kind::Fault => fault::LEN,
+            Kind::OutputEncoder => output_encoder::LEN,
+            Kind::Sensor => sensor::LEN,
+            Kind::Actuator => actuator::LEN,
+            Kind::SetpointMotion => setpoint_motion::LEN,
+            Kind::SetpointForce => setpoint_force::LEN,
+            Kind::ControlWord => control_word::LEN,
+            Kind::TelemetryMotion => telemetry_motion::LEN,
+            Kind::TelemetryTorque => telemetry_torque::LEN,
+            Kind::ParamWrite => param_write::LEN,
+            Kind::ParamCommit => param_commit::LEN,
+            Kind::ParamRead => param_read::LEN,
+            Kind::ParamResponse => param_response::LEN,
+            Kind::Heartbeat => heartbeat::LEN,
+        }
+    }
+
+    /// Worst-case bits on the bus of one frame of this kind, stuff bits included:
+    /// `47 + 8n + ⌊(34 + 8n − 1) / 4⌋` (see `docs/protocol.md` § Bus load).
+    pub const fn worst_case_bits(self) -> u32 {
+        let data_bits = (self.dlc() as u32).saturating_mul(8);
+        // Stuffable region is 34 + 8n bits; one stuff bit per 4 after the first.
+        let stuff = match 33u32.saturating_add(data_bits).checked_div(4) {
+            Some(v) => v,
+            None => 0,
+        };
+        47u32.saturating_add(data_bits).saturating_add(stuff)
+    }
+}
 
 /// Any protocol message, decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -229,6 +264,13 @@ impl Message {
             Ok(_) => Err(Error::Unencodable { kind }),
             Err(e) => Err(e),
         }
+    }
+
+    /// True if a card with node `me` should act on this frame: a to-card kind addressed to
+    /// `me` or broadcast. (Frames for other nodes, and every card's own output kinds, are
+    /// simply not for it — that is not a rejection and is not counted.)
+    pub fn is_for(node: NodeId, kind: Kind, me: NodeId) -> bool {
+        kind.direction() == Direction::ToCard && (node == me || node.is_broadcast())
     }
 
     /// Builds a frame for `node` (see [`Message::to_bytes`] for the validation).

@@ -138,3 +138,44 @@ impl Repr {
         p.set_flags(flags);
     }
 }
+
+/// Signed change between two samples of a free-running wrapping count (motor or output
+/// encoder): exact while the true change is within ±2³¹ − 1 counts (see the module docs).
+pub const fn count_delta(prev: u32, now: u32) -> i32 {
+    now.wrapping_sub(prev) as i32
+}
+
+/// Multi-turn position from a free-running u32 count, exactly as `docs/protocol.md`
+/// § Multi-turn positions specifies: the first sample gives `raw as i32`, later samples add
+/// [`count_delta`] with wrapping i32 arithmetic (continuous joints wrap like the raw count).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Unwrap {
+    last: Option<u32>,
+    position: i32,
+}
+
+impl Unwrap {
+    /// No sample yet.
+    pub const fn new() -> Self {
+        Unwrap {
+            last: None,
+            position: 0,
+        }
+    }
+
+    /// Feeds one raw sample and returns the position in counts.
+    pub fn update(&mut self, raw: u32) -> i32 {
+        self.position = match self.last {
+            None => raw as i32,
+            Some(prev) => self.position.wrapping_add(count_delta(prev, raw)),
+        };
+        self.last = Some(raw);
+        self.position
+    }
+
+    /// The last position (0 before the first sample).
+    pub const fn position(&self) -> i32 {
+        self.position
+    }
+}

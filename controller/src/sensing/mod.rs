@@ -1,6 +1,6 @@
 //! Sensing at 1 kHz: multi-turn unwrap of a wrapping encoder count, and velocity estimation.
 //!
-//! Why an estimator at all (notes §1, [D]): differencing a 2304 cpr encoder at 1 kHz gives
+//! Why an estimator at all (notes §1, \[D\]): differencing a 2304 cpr encoder at 1 kHz gives
 //! 2π/2304·1000 = 2.73 rad/s per count — ≈15 000× coarser than the thesis's Sensorimotor
 //! velocity (1.8·10⁻⁴ rad/s). The thesis blames coarse velocity for "roughened damped behavior
 //! … at high damping gain levels" and motor humming, and its input-velocity damping (§2.4) is

@@ -15,6 +15,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "direction-dependent friction (extra Coulomb/stiction/viscous in the \
      + direction); residual mean and slope differ between + and − motion";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["coulomb_extra", "viscous_extra"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
+
 crate::define_params! {
     /// Extra Coulomb level in the positive direction, τc⁺ − τc⁻ (N·m).
     coulomb_extra: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
@@ -36,7 +42,7 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 /// `[step_ε(v), max(v, 0)]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let v = &traj.velocity[..traj.len()];
-    let eps = shape.sign_velocity;
+    let eps = shape.sign_epsilon;
     vec![
         v.iter().map(|&v| 0.5 * (1.0 + smooth_sign(v, eps))).collect(),
         v.iter().map(|&v| v.max(0.0)).collect(),
@@ -45,5 +51,5 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 
 /// Same sign-smoothing grid as Coulomb.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    super::coulomb::sign_velocity_grid(traj)
+    super::coulomb::sign_epsilon_grid(traj)
 }

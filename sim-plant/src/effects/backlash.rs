@@ -8,13 +8,17 @@
 //! separation fall out of the spring law, no event logic needed). Lumped at the output, in
 //! output radians (the thesis lumps it at the input; the two differ by N).
 //!
-//! Fingerprint (linearised, rigid model, position measured on the motor side): after each
-//! velocity reversal the motor traverses the gap b with the load decoupled, so the true input
-//! is `J1·a` instead of the model's `J·a`; the residual `r = u − J·a = −J_load·a` while in the
-//! gap. Column `[−a·gap_b(t)]` with `gap_b(t) = 1` until the position has moved b since the last
-//! reversal; its amplitude is the inertia beyond the gap (kg·m², not a model parameter — the
-//! width b is the shape). Thesis-notes §7.13: flat dead zone of width b at torque reversal,
-//! load lags after reversal.
+//! Fingerprint (linearised, rigid model, position measured on the motor side): the gap is
+//! crossed whenever the transmitted torque changes sign — at a velocity reversal for a
+//! friction-dominated load (the thesis's "load lags the motor after each reversal"), at a sign
+//! change of the input for an inertia-dominated one (`Shape::backlash_on_input`; the grid
+//! offers both). While crossing, the motor moves with the load decoupled, so the true input is
+//! `J1·a` instead of the model's `J·a`, and the residual `r = u − J·a = −J_load·a`. Column
+//! `[−a·gap_b(t)]` with `gap_b(t) = 1` from the trigger until the motor has moved b relative
+//! to the decoupled load, which coasts on at the velocity it had at the trigger; its
+//! amplitude is the inertia beyond the gap (kg·m², not a model parameter — the width b is the
+//! shape). The impacts at the ends of the gap are outside this linearisation. Thesis-notes
+//! §7.13: flat dead zone of width b at torque reversal, load lags after reversal.
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
@@ -24,13 +28,20 @@ pub const DESCRIBE: &str = "backlash dead zone of width b in the transmission; f
      width b at torque reversal in a stiffness test, load lags after each reversal, \
      residual −J_load·a while crossing the gap";
 
+/// Amplitude of the fingerprint column: the inertia beyond the gap (kg·m²), a derived
+/// quantity, not a model parameter.
+pub const AMPLITUDES: &[&str] = &["load_inertia"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Total width of the dead zone (rad at the output).
     width: "rad" = 0.0, [0.0, 1.0], Shape;
 }
 
 /// `x` minus its clamp to ±half: zero inside the gap, shifted outside.
-#[inline]
+#[inline(always)]
 pub fn dead_zone(x: f64, half: f64) -> f64 {
     if x > half {
         x - half
@@ -55,34 +66,41 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 /// `[−a·gap_b(t)]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
-    let b = shape.backlash;
-    let eps = shape.sign_velocity;
+    let b = shape.backlash_width;
+    let (trigger, eps) = if shape.backlash_on_input {
+        (&traj.input[..n], 1e-3 * traj.max_abs_input())
+    } else {
+        (&traj.velocity[..n], shape.sign_epsilon)
+    };
     let mut col = Vec::with_capacity(n);
     let mut dir = 0.0;
-    let mut anchor = f64::NAN; // NaN: not yet known to be in contact
-    for i in 0..n {
-        let v = traj.velocity[i];
-        let q = traj.position[i];
-        let s = if v > eps {
+    // Load position, velocity and sample index at the last trigger (NaN: not yet in contact).
+    let (mut anchor, mut anchor_v, mut anchor_i) = (f64::NAN, 0.0, 0);
+    for (i, (&x, &q)) in trigger.iter().zip(&traj.position[..n]).enumerate() {
+        let s = if x > eps {
             1.0
-        } else if v < -eps {
+        } else if x < -eps {
             -1.0
         } else {
             dir
         };
         if s != dir {
             if dir != 0.0 {
-                anchor = q; // reversal: the gap must be crossed again
+                // The transmitted torque reversed: the gap must be crossed.
+                anchor = q;
+                anchor_v = traj.velocity[i];
+                anchor_i = i;
             }
             dir = s;
         }
-        let in_gap = anchor.is_finite() && (q - anchor).abs() < b;
+        let load = anchor + anchor_v * (i - anchor_i) as f64 * traj.dt;
+        let in_gap = anchor.is_finite() && (q - load).abs() < b;
         col.push(if in_gap { -traj.acceleration[i] } else { 0.0 });
     }
     vec![col]
 }
 
-/// Widths log-spaced from 1e-4 to 0.1 of the position span.
+/// Widths log-spaced from 1e-4 to 0.1 of the position span, for both triggers.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
@@ -90,12 +108,16 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &q| (l.min(q), h.max(q)));
     let span = positive_or(hi - lo, 1.0);
     let vmax = positive_or(traj.max_abs_velocity(), 1.0);
-    log_space(1e-4 * span, 0.1 * span, 8)
-        .into_iter()
-        .map(|b| Shape {
-            backlash: b,
-            sign_velocity: 1e-3 * vmax,
-            ..Shape::default()
-        })
-        .collect()
+    let mut out = Vec::new();
+    for on_input in [false, true] {
+        for b in log_space(1e-4 * span, 0.1 * span, 8) {
+            out.push(Shape {
+                backlash_width: b,
+                backlash_on_input: on_input,
+                sign_epsilon: 1e-3 * vmax,
+                ..Shape::default()
+            });
+        }
+    }
+    out
 }

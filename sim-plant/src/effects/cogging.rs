@@ -7,7 +7,7 @@
 //! amplitudes are output-referred (motor-side value × N) like every other parameter.
 //!
 //! Fingerprint: `[sin(2πq/P), cos(2πq/P)]` of the trajectory position with P the cogging
-//! period in that position's units — 2π/(n·N) for output-referred data. Thesis-notes §7.8:
+//! period (`Shape::cogging_period`) in that position's units — 2π/(n·N) for output-referred data. Thesis-notes §7.8:
 //! periodic in *rotor* angle, constant magnitude, visible only when friction is smaller.
 
 use super::laws::PeriodicTorque;
@@ -17,6 +17,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "motor cogging periodic in rotor angle (9 cycles/rev for the \
      SEIBERCO), constant magnitude; residual periodic in motor position at N× the output \
      ripple frequency";
+
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["sin", "cos"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
 
 crate::define_params! {
     /// Sine amplitude (N·m, output-referred).
@@ -37,12 +43,24 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     };
 }
 
-/// `[sin(2πq/P), cos(2πq/P)]` with `P = Shape::period`.
+/// `[sin(2πq/P), cos(2πq/P)]` with `P = Shape::cogging_period`; empty (not testable) when
+/// the period is unknown (0).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    super::ripple::periodic_columns(traj, shape.period)
+    if shape.cogging_period > 0.0 {
+        super::ripple::periodic_columns(traj, shape.cogging_period)
+    } else {
+        Vec::new()
+    }
 }
 
-/// Same period grid as ripple (the ratio N is not known from a trajectory).
+/// Same period grid as ripple (the ratio N is not known from a trajectory; a caller who knows
+/// it sets `cogging_period = 2π/(cycles·N)` directly).
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    super::ripple::period_grid(traj)
+    super::ripple::periods(traj)
+        .into_iter()
+        .map(|cogging_period| Shape {
+            cogging_period,
+            ..Shape::default()
+        })
+        .collect()
 }

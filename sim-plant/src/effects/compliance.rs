@@ -28,6 +28,13 @@ pub const DESCRIBE: &str = "transmission spring KT with soft zone (k_soft up to 
      then k_hard); ringing at the transmission mode, residual ∝ d²a/dt², resonance frequency \
      that varies with load";
 
+/// Amplitude of the fingerprint column: −J_far²/K seen from the motor side (kg·m²·s²), a
+/// derived quantity, not a model parameter.
+pub const AMPLITUDES: &[&str] = &["inertia_sq_over_stiffness"];
+
+/// Admissible sign of the first amplitude: negative for a motor-side position sensor.
+pub const SIGN: Option<f64> = Some(-1.0);
+
 crate::define_params! {
     /// Stiffness beyond the knee, or of the whole spring without a knee (N·m/rad, output).
     stiffness: "N·m/rad" = DEFAULT_STIFFNESS, [1e-6, 1e12], Setting;
@@ -40,12 +47,24 @@ crate::define_params! {
 }
 
 /// Elastic torque of an engaged deflection `e` (rad) for the piecewise-linear soft-zone spring.
-#[inline]
+#[inline(always)]
 pub fn elastic(e: f64, k_soft: f64, k_hard: f64, knee: f64) -> f64 {
-    if knee <= 0.0 {
-        return k_hard * e;
+    elastic_with(e, k_soft, k_hard, knee, knee_deflection(k_soft, knee))
+}
+
+/// Deflection at the knee (0 without a soft zone).
+pub fn knee_deflection(k_soft: f64, knee: f64) -> f64 {
+    if knee > 0.0 && k_soft > 0.0 {
+        knee / k_soft
+    } else {
+        0.0
     }
-    let ek = knee / k_soft;
+}
+
+/// [`elastic`] with the knee deflection precomputed (the integrator's form: no division
+/// per substep). With `ek = 0` it is the linear spring `k_hard·e`.
+#[inline(always)]
+pub fn elastic_with(e: f64, k_soft: f64, k_hard: f64, knee: f64, ek: f64) -> f64 {
     if e > ek {
         knee + k_hard * (e - ek)
     } else if e < -ek {
@@ -92,10 +111,10 @@ pub fn shape_grid(_traj: &Trajectory) -> Vec<Shape> {
 /// [`elastic`].
 pub fn potential(e: f64, k_soft: f64, k_hard: f64, knee: f64) -> f64 {
     let a = e.abs();
-    if knee <= 0.0 {
+    let ek = knee_deflection(k_soft, knee);
+    if ek == 0.0 {
         return 0.5 * k_hard * a * a;
     }
-    let ek = knee / k_soft;
     if a <= ek {
         0.5 * k_soft * a * a
     } else {

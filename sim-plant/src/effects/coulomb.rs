@@ -5,7 +5,7 @@
 //! [`crate::plant`]) and holds any torque up to the breakaway level (= τc without a
 //! `stribeck` excess) — a stick state, not a chattering sign().
 //!
-//! Fingerprint: `[sign_ε(v)]`, a sign with a linear zone |v| < ε (`Shape::sign_velocity`)
+//! Fingerprint: `[sign_ε(v)]`, a sign with a linear zone |v| < ε (`Shape::sign_epsilon`)
 //! because measured velocity near zero is quantisation noise (thesis-notes §7.1: residual
 //! ±τc flipping at reversals; torque-position loop 2τc wide).
 
@@ -15,6 +15,12 @@ use super::{EffectLaws, Shape, Trajectory};
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "Coulomb friction R = τc·sign(v), sticks at rest; residual is a \
      ±τc square wave flipping at velocity reversals (loop 2τc wide)";
+
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["torque"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
 
 crate::define_params! {
     /// Coulomb friction level (N·m, output-referred), both directions.
@@ -29,7 +35,7 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 
 /// `[sign_ε(v)]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    let eps = shape.sign_velocity;
+    let eps = shape.sign_epsilon;
     vec![traj.velocity[..traj.len()]
         .iter()
         .map(|&v| smooth_sign(v, eps))
@@ -38,16 +44,16 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 
 /// Grid of sign-smoothing velocities: 1e-4 … 3e-2 of the largest |v|.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    sign_velocity_grid(traj)
+    sign_epsilon_grid(traj)
 }
 
-/// Shared by coulomb, asymmetry: a log grid of `sign_velocity`.
-pub(crate) fn sign_velocity_grid(traj: &Trajectory) -> Vec<Shape> {
+/// Shared by coulomb, asymmetry: a log grid of `sign_epsilon`.
+pub(crate) fn sign_epsilon_grid(traj: &Trajectory) -> Vec<Shape> {
     let vmax = positive_or(traj.max_abs_velocity(), 1.0);
     log_space(1e-4 * vmax, 3e-2 * vmax, 5)
         .into_iter()
         .map(|eps| Shape {
-            sign_velocity: eps,
+            sign_epsilon: eps,
             ..Shape::default()
         })
         .collect()

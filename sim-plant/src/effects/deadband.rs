@@ -2,12 +2,13 @@
 //! linearity": 1–2 % RMS of max, worst near max torque, "a slight indication of a small torque
 //! deadband"; D/A plus analogue amplifier).
 //!
-//! Dynamics: applied = `u − clamp(u, ±w) − c·u·|u|/S` — a dead zone of half-width w and a
-//! torque constant that sags by the fraction c at |u| = S.
+//! Dynamics: applied = `dz(u)·(1 − c·|u|/S)` with `dz(u) = u − clamp(u, ±w)` — a dead zone of
+//! half-width w and a torque constant that sags by the fraction c at |u| = S (zero torque
+//! inside the dead zone, never a sign flip for c < 1).
 //!
-//! Fingerprint: `R = u − applied`, i.e. `[clamp(u/w, −1, 1), u·|u|/S]` with amplitudes w
-//! (the deadband half-width; the shape grid supplies w inside the clamp, the fitted amplitude
-//! re-estimates it) and c. Thesis-notes §7.9: residual ∝ command, worse near max; small dead
+//! Fingerprint: `R = u − applied = w·clamp(u/w, −1, 1) + c·dz(u)·|u|/S`, i.e. columns
+//! `[clamp(u/w, −1, 1), dz(u)·|u|/S]` with amplitudes w (the deadband half-width; the shape
+//! grid supplies w inside the columns, the fitted amplitude re-estimates it) and c. Thesis-notes §7.9: residual ∝ command, worse near max; small dead
 //! zone at zero command.
 
 use super::signal::positive_or;
@@ -16,6 +17,12 @@ use super::{EffectLaws, Shape, Trajectory};
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "actuator deadband and torque-constant nonlinearity; residual tracks \
      the command: a step of ±w around zero command and a term growing like u·|u| near max";
+
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["width", "nonlinearity"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
 
 crate::define_params! {
     /// Deadband half-width w (N·m, output-referred).
@@ -27,7 +34,7 @@ crate::define_params! {
 }
 
 /// The part of `x` a dead zone of half-width `w` removes: `clamp(x, −w, w)`.
-#[inline]
+#[inline(always)]
 pub fn dead(x: f64, w: f64) -> f64 {
     x.clamp(-w, w)
 }
@@ -39,14 +46,14 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     laws.actuator.input_scale = p.input_scale.value;
 }
 
-/// `[clamp(u/w, −1, 1), u·|u|/S]`.
+/// `[clamp(u/w, −1, 1), dz(u)·|u|/S]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let u = &traj.input[..traj.len()];
-    let w = positive_or(shape.deadband, 1e-9);
+    let w = positive_or(shape.deadband_width, 1e-9);
     let s = positive_or(shape.input_scale, 1.0);
     vec![
         u.iter().map(|&u| (u / w).clamp(-1.0, 1.0)).collect(),
-        u.iter().map(|&u| u * u.abs() / s).collect(),
+        u.iter().map(|&u| (u - dead(u, w)) * u.abs() / s).collect(),
     ]
 }
 
@@ -56,7 +63,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     [0.005, 0.01, 0.02, 0.05, 0.1]
         .into_iter()
         .map(|f| Shape {
-            deadband: f * umax,
+            deadband_width: f * umax,
             input_scale: umax,
             ..Shape::default()
         })

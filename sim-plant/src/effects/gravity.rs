@@ -11,6 +11,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "gravity on the output m·g·l·sin(q+φ); residual is a sinusoid of \
      position with period 2π, present at rest";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["sin", "cos"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
+
 crate::define_params! {
     /// Sine amplitude, m·g·l·cos φ (N·m).
     sin: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);

@@ -24,6 +24,8 @@ pub struct FrictionLaw {
     pub stribeck_velocity: f64,
     /// Stribeck exponent δ.
     pub stribeck_exponent: f64,
+    /// 1/vs (0 without a Stribeck excess), set by [`EffectLaws::finalize`].
+    pub inv_stribeck_velocity: f64,
     /// Viscous coefficient, positive motion (N·m·s/rad).
     pub viscous_pos: f64,
     /// Viscous coefficient, negative motion (N·m·s/rad).
@@ -32,7 +34,7 @@ pub struct FrictionLaw {
 
 impl FrictionLaw {
     /// Static (breakaway) level for impending motion in direction `dir` (±1).
-    #[inline]
+    #[inline(always)]
     pub fn breakaway(&self, dir: f64) -> f64 {
         if dir >= 0.0 {
             self.coulomb_pos + self.excess_pos
@@ -52,17 +54,17 @@ impl FrictionLaw {
     }
 
     /// Resisting torque while sliding with velocity `v ≠ 0` (same sign as `v`).
-    #[inline]
+    #[inline(always)]
     pub fn sliding(&self, v: f64) -> f64 {
         if v > 0.0 {
             let dry = self.coulomb_pos
                 + self.excess_pos
-                    * stribeck::decay(v, self.stribeck_velocity, self.stribeck_exponent);
+                    * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent);
             dry + self.viscous_pos * v
         } else if v < 0.0 {
             let dry = self.coulomb_neg
                 + self.excess_neg
-                    * stribeck::decay(-v, self.stribeck_velocity, self.stribeck_exponent);
+                    * stribeck::decay_inv(-v, self.inv_stribeck_velocity, self.stribeck_exponent);
             -dry + self.viscous_neg * v
         } else {
             0.0
@@ -83,6 +85,8 @@ pub struct SpringLaw {
     pub k_soft: f64,
     /// Torque at the knee (N·m); 0 = linear spring.
     pub knee_torque: f64,
+    /// Deflection at the knee (rad), set by [`EffectLaws::finalize`].
+    pub knee_deflection: f64,
     /// Structural damping in contact (N·m·s/rad).
     pub damping: f64,
     /// Total backlash width (rad at the output).
@@ -91,21 +95,26 @@ pub struct SpringLaw {
 
 impl SpringLaw {
     /// Deflection beyond the backlash gap (0 inside the gap).
-    #[inline]
+    #[inline(always)]
     pub fn engaged(&self, deflection: f64) -> f64 {
         super::backlash::dead_zone(deflection, 0.5 * self.backlash)
     }
 
     /// Transmitted torque for a deflection `d` (input minus output, rad) and deflection
     /// rate `dd`, from motor side to output side.
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, d: f64, dd: f64) -> f64 {
         let e = self.engaged(d);
         if e == 0.0 {
             return 0.0;
         }
-        super::compliance::elastic(e, self.k_soft, self.k_hard, self.knee_torque)
-            + self.damping * dd
+        super::compliance::elastic_with(
+            e,
+            self.k_soft,
+            self.k_hard,
+            self.knee_torque,
+            self.knee_deflection,
+        ) + self.damping * dd
     }
 
     /// Largest incremental stiffness (N·m/rad), for the integrator's stability check.
@@ -126,25 +135,29 @@ pub struct ActuatorLaw {
     pub delay: f64,
     /// Deadband half-width (N·m).
     pub deadband: f64,
-    /// Torque-constant nonlinearity c: applied = u·(1 − c·|u|/scale).
+    /// Torque-constant sag c: applied = dz(u)·(1 − c·|u|/scale), dz = the deadband.
     pub nonlinearity: f64,
     /// Scale of the nonlinearity (N·m).
     pub input_scale: f64,
 }
 
 impl ActuatorLaw {
-    /// Applied torque for an (already delayed) command `u`, before the offset.
-    #[inline]
+    /// Applied torque for an (already delayed) command `u`, before the offset: quantised, then
+    /// the deadband removed, then the torque constant sagging with |command|. Each effect's
+    /// residual is exactly its fingerprint column times its amplitude.
+    #[inline(always)]
     pub fn shape(&self, u: f64) -> f64 {
-        let mut x = u;
-        if self.quant_step > 0.0 {
-            x -= self.quant_gain * super::quantization::error(x, self.quant_step);
-        }
+        let q = if self.quant_step > 0.0 {
+            u - self.quant_gain * super::quantization::error(u, self.quant_step)
+        } else {
+            u
+        };
+        let mut x = q;
         if self.deadband > 0.0 {
-            x -= super::deadband::dead(x, self.deadband);
+            x -= super::deadband::dead(q, self.deadband);
         }
         if self.nonlinearity != 0.0 && self.input_scale > 0.0 {
-            x -= self.nonlinearity * x * x.abs() / self.input_scale;
+            x -= self.nonlinearity * x * q.abs() / self.input_scale;
         }
         x
     }
@@ -165,9 +178,17 @@ pub struct PeriodicTorque {
 
 impl PeriodicTorque {
     /// Resisting torque at angle `q` with transmitted torque `load`.
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, q: f64, load: f64) -> f64 {
-        let (s, c) = (self.wavenumber * q).sin_cos();
+        let (s, c) = crate::fastmath::sin_cos(self.wavenumber * q);
+        (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
+    }
+
+    /// As [`PeriodicTorque::torque`], with the angle's sine and cosine tracked by `rotor`
+    /// (the integrator's fast path).
+    #[inline(always)]
+    pub fn torque_tracked(&self, rotor: &mut crate::fastmath::Rotor, q: f64, load: f64) -> f64 {
+        let (s, c) = rotor.sin_cos(self.wavenumber * q);
         (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
     }
 
@@ -192,14 +213,45 @@ impl EffectLaws {
         ] {
             *x = x.max(0.0);
         }
+        f.inv_stribeck_velocity = if f.stribeck_velocity > 0.0 {
+            1.0 / f.stribeck_velocity
+        } else {
+            0.0
+        };
+        let s = &mut self.spring;
+        s.knee_deflection = super::compliance::knee_deflection(s.k_soft, s.knee_torque);
+        if s.knee_deflection == 0.0 {
+            s.knee_torque = 0.0;
+        }
     }
+}
+
+/// Which node an [`AdditiveTorque`] acts on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Node {
+    /// The motor node (angle/velocity passed output-referred).
+    Motor,
+    /// The output node (the rigid plant's only node).
+    Output,
+}
+
+/// Extension point: a resisting torque `law(params, q, v, load)` on one node, for a new effect
+/// that fits none of the dedicated slots. Its module's `install` pushes one of these, and the
+/// integrator sums them — so such an effect needs no change to the integrator. (`q`, `v` are
+/// output-referred; `load` is the transmitted torque.)
+#[derive(Clone, Copy, Debug)]
+pub struct AdditiveTorque {
+    /// Where it acts.
+    pub node: Node,
+    /// The torque law.
+    pub law: fn(&[f64; 4], f64, f64, f64) -> f64,
+    /// Up to four numbers for the law.
+    pub params: [f64; 4],
 }
 
 /// Everything the effects of a model install; the integrator evaluates it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct EffectLaws {
-    /// Constant resisting torque on the output (N·m).
-    pub offset: f64,
     /// Friction at the friction node (the output for geared plants: Table 4.1 is output-side).
     pub friction: FrictionLaw,
     /// Transmission spring (compliance + backlash).
@@ -212,4 +264,26 @@ pub struct EffectLaws {
     pub cogging: PeriodicTorque,
     /// Gravity: `sin·sin(q) + cos·cos(q)` of the output angle (a PeriodicTorque with k = 1).
     pub gravity: PeriodicTorque,
+    /// Further resisting torques of effects without a dedicated slot (see [`AdditiveTorque`]).
+    pub additive: Vec<AdditiveTorque>,
+}
+
+impl PartialEq for AdditiveTorque {
+    fn eq(&self, other: &Self) -> bool {
+        self.node == other.node
+            && self.params == other.params
+            && std::ptr::fn_addr_eq(self.law, other.law)
+    }
+}
+
+impl EffectLaws {
+    /// Sum of the additive torques on `node`.
+    #[inline(always)]
+    pub fn additive_on(&self, node: Node, q: f64, v: f64, load: f64) -> f64 {
+        self.additive
+            .iter()
+            .filter(|a| a.node == node)
+            .map(|a| (a.law)(&a.params, q, v, load))
+            .sum()
+    }
 }

@@ -12,6 +12,13 @@
 //! All effects are registered in ONE place, the `registry!` invocation below: adding an effect
 //! is one module plus one line there, which extends [`EffectKind`], [`EffectSet`] (the
 //! `[effects]` section of a model file), [`fingerprint`], [`shape_grid`] and installation.
+//! The module's `install` writes into an existing slot of [`EffectLaws`] (friction curve,
+//! spring, actuator chain, periodic torques) or pushes an [`AdditiveTorque`] — a torque law on
+//! the motor or output node that the integrator sums — so the integrator needs no change.
+//!
+//! A new module provides: `DESCRIBE`, `AMPLITUDES` (names of its fingerprint columns'
+//! amplitudes), `SIGN` (admissible sign of the first), a `define_params!` table, and
+//! `install`, `fingerprint`, `shape_grid`.
 //!
 //! ## Sign convention
 //! Every effect is written as a *resisting* torque `R` in the axis equation
@@ -21,7 +28,9 @@
 pub mod laws;
 pub mod signal;
 
-pub use laws::{ActuatorLaw, EffectLaws, FrictionLaw, SpringLaw};
+pub use laws::{
+    ActuatorLaw, AdditiveTorque, EffectLaws, FrictionLaw, Node, PeriodicTorque, SpringLaw,
+};
 
 use crate::param::ParamSpec;
 
@@ -73,46 +82,60 @@ impl Trajectory<'_> {
 
 /// Shape parameters that make a fingerprint linear in its amplitude(s). Each effect reads only
 /// the fields it needs (listed per field). Defaults are sensible for output-referred rotary
-/// data of the thesis's joints (velocities ~0.01–1 rad/s, torques ~1–100 N·m).
+/// data of the thesis's joints (velocities ~0.01–1 rad/s, torques ~1–100 N·m). Field names
+/// follow the workbench's usage.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Shape {
-    /// Coulomb, asymmetry, stribeck: |v| below which sign(v) is replaced by v/ε
-    /// (a deadbanded sign: measured velocity near zero is mostly quantisation noise). Units of
-    /// velocity.
-    pub sign_velocity: f64,
+    /// Coulomb, asymmetry, stribeck, backlash (velocity trigger): |v| below which sign(v) is
+    /// replaced by v/ε (a deadbanded sign: measured velocity near zero is mostly quantisation
+    /// noise). Units of velocity.
+    pub sign_epsilon: f64,
     /// Stribeck: characteristic velocity vs of the stiction→Coulomb transition.
     pub stribeck_velocity: f64,
     /// Stribeck: exponent δ in exp(−(|v|/vs)^δ) (1 = exponential, 2 = Gaussian).
     pub stribeck_exponent: f64,
-    /// Ripple, cogging: spatial period in units of the trajectory's position (e.g. the tooth
-    /// or lobe spacing at the output; for cogging 2π/(9·N) rad at the output).
-    pub period: f64,
+    /// Ripple: spatial period in units of the trajectory's position (tooth / lobe / roller
+    /// spacing at the output).
+    pub ripple_period: f64,
+    /// Cogging: spatial period in units of the trajectory's position, 2π/(cycles·N) rad for
+    /// output-referred data; 0 = unknown (the fingerprint is then empty: not testable).
+    pub cogging_period: f64,
     /// Backlash: total width of the dead zone, position units.
-    pub backlash: f64,
+    pub backlash_width: f64,
+    /// Backlash: what makes the transmission cross its gap. `false`: velocity reversal (a
+    /// friction-dominated load, the thesis's stiffness/backdrive tests); `true`: sign change
+    /// of the input (an inertia-dominated load, whose transmitted torque follows the input).
+    pub backlash_on_input: bool,
     /// Deadband: half-width of the input dead zone, input units.
-    pub deadband: f64,
+    pub deadband_width: f64,
     /// Deadband (torque-constant nonlinearity): input scale the nonlinearity is normalised to
     /// (the actuator's maximum), input units.
     pub input_scale: f64,
     /// Quantization: step of the input (D/A) quantiser, input units; 0 = none.
-    pub quant_step: f64,
-    /// Quantization, compliance, delay: length (samples) of the moving average that separates
-    /// the smooth part of a signal from its fuzz, and smooths differentiated signals.
+    pub quantum: f64,
+    /// Delay: the delay τs (s) the column is built for, (u(t) − u(t − τs))/τs; its amplitude
+    /// is the delay and equals τs at the best shape. 0 = the derivative u̇ (small delays).
+    pub delay: f64,
+    /// Compliance, delay: length (samples) of the moving average that smooths signals before
+    /// they are differentiated.
     pub smoothing: usize,
 }
 
 impl Default for Shape {
     fn default() -> Self {
         Self {
-            sign_velocity: 1e-3,
+            sign_epsilon: 1e-3,
             stribeck_velocity: 0.05,
             stribeck_exponent: 2.0,
-            period: std::f64::consts::TAU / 100.0,
-            backlash: 0.01,
-            deadband: 0.05,
+            ripple_period: std::f64::consts::TAU / 100.0,
+            cogging_period: 0.0,
+            backlash_width: 0.01,
+            backlash_on_input: false,
+            deadband_width: 0.05,
             input_scale: 1.0,
-            quant_step: 0.0,
+            quantum: 0.0,
+            delay: 0.0,
             smoothing: 5,
         }
     }
@@ -154,6 +177,22 @@ macro_rules! registry {
             /// The effect's parameters (name, unit, default, role).
             pub fn params(self) -> &'static [ParamSpec] {
                 match self { $( EffectKind::$variant => $module::PARAMS, )* }
+            }
+
+            /// Names of the amplitudes of the fingerprint columns, one per column, in order.
+            /// Where a column's amplitude is a model parameter it has that parameter's name
+            /// (see [`EffectKind::params`], role `Amplitude(i)`).
+            pub fn param_names(self) -> &'static [&'static str] {
+                match self { $( EffectKind::$variant => $module::AMPLITUDES, )* }
+            }
+
+            /// Physically admissible sign of the *first* amplitude in the convention
+            /// r = input − model_input = Σ θ·column, or `None` if either sign is physical.
+            /// Friction, delay, deadband and unseen quantisation are positive; compliance seen
+            /// from a motor-side sensor is negative. A fit of the wrong sign is not evidence
+            /// for the effect (usually errors-in-variables bias from noisy derivatives).
+            pub fn admissible_sign(self) -> Option<f64> {
+                match self { $( EffectKind::$variant => $module::SIGN, )* }
             }
         }
 

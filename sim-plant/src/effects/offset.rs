@@ -5,20 +5,36 @@
 //!
 //! Dynamics: `R = torque`. Fingerprint: `[1]`.
 
-use super::{EffectLaws, Shape, Trajectory};
+use super::{AdditiveTorque, EffectLaws, Node, Shape, Trajectory};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "constant bias torque R = c (amplifier/D-A offset, constant load); \
      residual is a constant shift, the same in both directions and at rest";
+
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["torque"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
 
 crate::define_params! {
     /// Constant resisting torque (N·m, output-referred; negative = an assisting bias).
     torque: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
 }
 
-/// Add the bias to the output torque balance.
+/// A constant: the torque law of this effect.
+fn constant(params: &[f64; 4], _q: f64, _v: f64, _load: f64) -> f64 {
+    params[0]
+}
+
+/// Add the bias to the output torque balance, through the generic [`AdditiveTorque`] slot
+/// (this effect doubles as the worked example of that extension point).
 pub fn install(p: &Params, laws: &mut EffectLaws) {
-    laws.offset += p.torque.value;
+    laws.additive.push(AdditiveTorque {
+        node: Node::Output,
+        law: constant,
+        params: [p.torque.value, 0.0, 0.0, 0.0],
+    });
 }
 
 /// `[1]`.

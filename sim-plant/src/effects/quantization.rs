@@ -14,6 +14,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "quantisation of the command (D/A steps Δ); residual is a bounded \
      sawtooth of the command within ±Δ/2, fuzz band, no effect at very low amplitude";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["gain"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Quantiser step Δ (N·m, output-referred); 0 = none.
     step: "N·m" = 0.0, [0.0, 1e6], Shape;
@@ -22,7 +28,7 @@ crate::define_params! {
 }
 
 /// Rounding error `x − Δ·round(x/Δ)`, in (−Δ/2, Δ/2].
-#[inline]
+#[inline(always)]
 pub fn error(x: f64, step: f64) -> f64 {
     x - step * (x / step).round()
 }
@@ -36,7 +42,7 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 /// `[u − Q_Δ(u)]` (zeros when Δ = 0).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let u = &traj.input[..traj.len()];
-    let d = shape.quant_step;
+    let d = shape.quantum;
     vec![if d > 0.0 {
         u.iter().map(|&u| error(u, d)).collect()
     } else {
@@ -56,7 +62,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     [1.0, 2.0, 5.0, 10.0]
         .into_iter()
         .map(|m| Shape {
-            quant_step: m * est,
+            quantum: m * est,
             ..Shape::default()
         })
         .collect()

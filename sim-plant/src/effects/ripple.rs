@@ -21,6 +21,12 @@ pub const DESCRIBE: &str = "transmission ripple periodic in output angle (tooth/
      spacing), amplitude may grow with load; residual periodic in output position with \
      frequency proportional to speed";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["sin", "cos"];
+
+/// Admissible sign of the first amplitude: either.
+pub const SIGN: Option<f64> = None;
+
 crate::define_params! {
     /// Sine amplitude (N·m).
     sin: "N·m" = 0.0, [-1e6, 1e6], Amplitude(0);
@@ -44,12 +50,18 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 
 /// `[sin(2πq/P), cos(2πq/P)]`.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    periodic_columns(traj, shape.period)
+    periodic_columns(traj, shape.ripple_period)
 }
 
 /// Periods log-spaced between max(span/1000, 4 samples of travel at top speed) and span/2.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    period_grid(traj)
+    periods(traj)
+        .into_iter()
+        .map(|ripple_period| Shape {
+            ripple_period,
+            ..Shape::default()
+        })
+        .collect()
 }
 
 /// Shared with cogging and gravity-like features.
@@ -62,28 +74,20 @@ pub(crate) fn periodic_columns(traj: &Trajectory, period: f64) -> Vec<Vec<f64>> 
     vec![s, c]
 }
 
-pub(crate) fn period_grid(traj: &Trajectory) -> Vec<Shape> {
+/// Log-spaced candidate periods for the trajectory (see [`shape_grid`]).
+pub(crate) fn periods(traj: &Trajectory) -> Vec<f64> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &q| (l.min(q), h.max(q)));
     let span = hi - lo;
     if span.is_nan() || span <= 0.0 {
-        return vec![Shape::default()];
+        return vec![Shape::default().ripple_period];
     }
     let pmin = (span / 1000.0).max(4.0 * traj.dt * traj.max_abs_velocity());
     let pmax = span / 2.0;
     if pmin >= pmax {
-        return vec![Shape {
-            period: pmax,
-            ..Shape::default()
-        }];
+        return vec![pmax];
     }
     log_space(pmin, pmax, 32)
-        .into_iter()
-        .map(|period| Shape {
-            period,
-            ..Shape::default()
-        })
-        .collect()
 }

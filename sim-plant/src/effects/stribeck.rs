@@ -16,6 +16,12 @@ pub const DESCRIBE: &str = "stiction above Coulomb with a Stribeck transition, \
      τc + Δ·exp(-(|v|/vs)^δ); residual peaks at low speed and velocity zero-crossings, \
      delayed breakaway, stick-slip";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["excess"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Stiction minus Coulomb, Δ = τs − τc (N·m), both directions.
     excess: "N·m" = 0.0, [0.0, 1e6], Amplitude(0);
@@ -26,12 +32,19 @@ crate::define_params! {
 }
 
 /// `exp(−(v/vs)^δ)` for `v ≥ 0`, cheap for the common δ = 2 and far from zero.
-#[inline]
+#[inline(always)]
 pub fn decay(v: f64, vs: f64, delta: f64) -> f64 {
     if vs <= 0.0 {
         return 0.0;
     }
-    let x = v / vs;
+    decay_inv(v, 1.0 / vs, delta)
+}
+
+/// [`decay`] with 1/vs precomputed (the integrator's form: no division on the dependency
+/// chain of the friction node).
+#[inline(always)]
+pub fn decay_inv(v: f64, inv_vs: f64, delta: f64) -> f64 {
+    let x = v * inv_vs;
     let e = if delta == 2.0 {
         x * x
     } else if delta == 1.0 {
@@ -62,7 +75,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let d = shape.stribeck_exponent;
     vec![traj.velocity[..traj.len()]
         .iter()
-        .map(|&v| smooth_sign(v, shape.sign_velocity) * (-(v.abs() / vs).powf(d)).exp())
+        .map(|&v| smooth_sign(v, shape.sign_epsilon) * (-(v.abs() / vs).powf(d)).exp())
         .collect()]
 }
 
@@ -75,7 +88,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
             out.push(Shape {
                 stribeck_velocity: vs,
                 stribeck_exponent: delta,
-                sign_velocity: 1e-3 * vmax,
+                sign_epsilon: 1e-3 * vmax,
                 ..Shape::default()
             });
         }

@@ -11,6 +11,12 @@ use super::{EffectLaws, Shape, Trajectory};
 pub const DESCRIBE: &str = "viscous friction R = B·v (grease/bearing shear); residual \
      proportional to velocity, torque-velocity loop widens with speed";
 
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
+pub const AMPLITUDES: &[&str] = &["damping"];
+
+/// Admissible sign of the first amplitude: positive (the effect consumes input).
+pub const SIGN: Option<f64> = Some(1.0);
+
 crate::define_params! {
     /// Viscous coefficient (N·m·s/rad, output-referred), both directions.
     damping: "N·m·s/rad" = 0.0, [0.0, 1e6], Amplitude(0);

@@ -200,8 +200,16 @@ impl Model {
             PlantKind::Rigid => {}
             PlantKind::TwoMass | PlantKind::ThreeMass => {
                 if p.output_inertia.value <= 0.0 {
+                    // Point at the inertia if written, else at what made the plant compliant.
+                    let why = self
+                        .effects
+                        .compliance
+                        .as_ref()
+                        .and_then(|c| c.entries().iter().find_map(|(_, q)| q.span()))
+                        .or_else(|| self.effects.backlash.as_ref().and_then(|b| b.width.span()))
+                        .or_else(|| p.proximal_stiffness.span());
                     return Err((
-                        p.output_inertia.span(),
+                        p.output_inertia.span().or(why),
                         "a compliant transmission (compliance/backlash effect or \
                          proximal_stiffness) needs plant.output_inertia > 0"
                             .into(),

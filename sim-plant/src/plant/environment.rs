@@ -51,7 +51,7 @@ pub enum Environment {
 impl Environment {
     /// Torque the environment applies to the output at angle `q`, velocity `v` (force-type
     /// environments; 0 for kinematic ones).
-    #[inline]
+    #[inline(always)]
     pub fn torque(&self, q: f64, v: f64) -> f64 {
         match *self {
             Environment::Free | Environment::Locked | Environment::Crank { .. } => 0.0,
@@ -78,7 +78,7 @@ impl Environment {
     }
 
     /// Prescribed output velocity for kinematic environments.
-    #[inline]
+    #[inline(always)]
     pub fn prescribed_velocity(&self) -> Option<f64> {
         match *self {
             Environment::Locked => Some(0.0),

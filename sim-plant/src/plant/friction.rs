@@ -13,21 +13,21 @@
 
 use crate::effects::FrictionLaw;
 
-/// Velocity after one substep `h` and the resisting friction torque used (same sign as the
-/// motion it resists). `tau` is every other torque on the node.
-#[inline]
+/// Velocity after one substep and the resisting friction torque used (same sign as the
+/// motion it resists). `tau` is every other torque on the node; `h_over_i` is the substep
+/// divided by the node's inertia.
+#[inline(always)]
 pub fn advance(
     v: f64,
     stuck: &mut bool,
     tau: f64,
-    inertia: f64,
+    h_over_i: f64,
     law: &FrictionLaw,
     dry: bool,
-    h: f64,
 ) -> (f64, f64) {
     if !dry {
         let f = law.sliding(v);
-        return (v + h * (tau - f) / inertia, f);
+        return (v + h_over_i * (tau - f), f);
     }
     if *stuck {
         let dir = if tau >= 0.0 { 1.0 } else { -1.0 };
@@ -37,10 +37,10 @@ pub fn advance(
         }
         *stuck = false;
         let f = dir * level;
-        return (h * (tau - f) / inertia, f);
+        return (h_over_i * (tau - f), f);
     }
     let f = law.sliding(v);
-    let vn = v + h * (tau - f) / inertia;
+    let vn = v + h_over_i * (tau - f);
     if vn * v <= 0.0 {
         *stuck = true;
         return (0.0, f);
@@ -62,16 +62,17 @@ mod tests {
             stribeck_exponent: 2.0,
             viscous_pos: 0.0,
             viscous_neg: 0.0,
+            inv_stribeck_velocity: 100.0,
         }
     }
 
     #[test]
     fn holds_below_breakaway_and_releases_above() {
         let mut stuck = true;
-        let (v, f) = advance(0.0, &mut stuck, 1.49, 1.0, &law(), true, 1e-4);
+        let (v, f) = advance(0.0, &mut stuck, 1.49, 1e-4, &law(), true);
         assert_eq!((v, f), (0.0, 1.49));
         assert!(stuck);
-        let (v, _) = advance(0.0, &mut stuck, -1.51, 1.0, &law(), true, 1e-4);
+        let (v, _) = advance(0.0, &mut stuck, -1.51, 1e-4, &law(), true);
         assert!(v < 0.0 && !stuck);
     }
 
@@ -79,7 +80,7 @@ mod tests {
     fn sliding_node_stops_instead_of_reversing() {
         let mut stuck = false;
         // Moving slowly positive with no drive: friction would overshoot through zero.
-        let (v, _) = advance(1e-5, &mut stuck, 0.0, 1.0, &law(), true, 1e-4);
+        let (v, _) = advance(1e-5, &mut stuck, 0.0, 1e-4, &law(), true);
         assert_eq!(v, 0.0);
         assert!(stuck);
     }

@@ -10,6 +10,8 @@ pub struct TrueState {
     pub motor_angle: f64,
     /// Motor shaft velocity (rad/s at the motor).
     pub motor_velocity: f64,
+    /// Motor shaft acceleration over the last substep (rad/s² at the motor).
+    pub motor_acceleration: f64,
     /// Intermediate stage angle, output-referred (3-mass; otherwise = motor_angle / N).
     pub middle_angle: f64,
     /// Output angle (rad).
