@@ -103,7 +103,8 @@ impl CardNode {
     /// The bus reported a fault that needs a safe state (bus-off, error-passive).
     pub fn on_bus_fault(&mut self, fault: &BusFault) -> Outgoing {
         if fault.requires_safe_state() {
-            self.card.bus_error(i32::try_from(fault.class_bits()).unwrap_or(i32::MAX));
+            self.card
+                .bus_error(i32::try_from(fault.class_bits()).unwrap_or(i32::MAX));
         }
         let mut out = Outgoing::default();
         self.drain(&mut out);
@@ -120,8 +121,10 @@ pub fn kind_of(f: &ClassicFrame) -> Option<u16> {
 }
 
 fn is_sensor_for(f: &ClassicFrame, node: NodeId) -> bool {
-    !f.is_extended() && f.raw_id() == u32::from(controller::proto::id::compose(
-        controller::proto::Kind::Sensor,
-        node,
-    ))
+    !f.is_extended()
+        && f.raw_id()
+            == u32::from(controller::proto::id::compose(
+                controller::proto::Kind::Sensor,
+                node,
+            ))
 }

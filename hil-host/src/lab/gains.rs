@@ -7,7 +7,7 @@
 use anyhow::{anyhow, Result};
 use controller::card::config;
 use controller::card::si::{self, CardScale};
-use controller::card::{ParamStore, Staging};
+use controller::card::ParamStore;
 use controller::proto::params::{self as p, WatchdogReaction};
 use controller::proto::Mode;
 use controller::units::motor_gain_from_output;
@@ -91,6 +91,8 @@ pub struct GainSet {
     pub watchdog_reaction: WatchdogReaction,
     /// Telemetry every N ticks.
     pub telemetry_divider: u16,
+    /// Fraction of the §2.9 discrete PD bound the card admits (its `stability_margin`).
+    pub stability_fraction: f64,
 }
 
 impl Default for GainSet {
@@ -112,6 +114,7 @@ impl Default for GainSet {
             watchdog_ms: 200,
             watchdog_reaction: WatchdogReaction::QuickStop,
             telemetry_divider: 1,
+            stability_fraction: 0.5,
         }
     }
 }
@@ -133,23 +136,51 @@ impl GainSet {
         let m = j.motor();
         let mg = |k: f64| motor_gain_from_output(k, n);
         let mut e = vec![
-            (p::ROTOR_INERTIA, si::inertia(j.rotor_inertia).map_err(si_err)?),
+            (
+                p::ROTOR_INERTIA,
+                si::inertia(j.rotor_inertia).map_err(si_err)?,
+            ),
             (p::MOTOR_COUNTS_PER_REV, j.motor_cpr.round() as i32),
             (p::OUTPUT_COUNTS_PER_REV, j.output_cpr.round() as i32),
             (p::GEAR_RATIO, (n * 65536.0).round() as i32),
-            (p::KE, si::stiffness(&m, mg(self.stiffness)).map_err(si_err)?),
-            (p::BE, si::damping(p::BE, &m, mg(self.damping)).map_err(si_err)?),
+            (
+                p::KE,
+                si::stiffness(&m, mg(self.stiffness)).map_err(si_err)?,
+            ),
+            (
+                p::BE,
+                si::damping(p::BE, &m, mg(self.damping)).map_err(si_err)?,
+            ),
             (p::KI, si::integral(&m, mg(self.integral)).map_err(si_err)?),
             (
                 p::INTEGRATOR_LIMIT,
                 si::torque(p::INTEGRATOR_LIMIT, self.integrator_limit).map_err(si_err)?,
             ),
-            (p::B1E, si::damping(p::B1E, &m, mg(self.input_damping)).map_err(si_err)?),
-            (p::FORCE_KP, si::torque_ratio(p::FORCE_KP, self.force_kp).map_err(si_err)?),
-            (p::FORCE_KD, si::force_rate(&m, self.force_kd).map_err(si_err)?),
-            (p::FORCE_KI, si::force_integral(&m, self.force_ki).map_err(si_err)?),
+            (
+                p::FORCE_INTEGRATOR_LIMIT,
+                si::torque(p::FORCE_INTEGRATOR_LIMIT, self.integrator_limit).map_err(si_err)?,
+            ),
+            (
+                p::B1E,
+                si::damping(p::B1E, &m, mg(self.input_damping)).map_err(si_err)?,
+            ),
+            (
+                p::FORCE_KP,
+                si::torque_ratio(p::FORCE_KP, self.force_kp).map_err(si_err)?,
+            ),
+            (
+                p::FORCE_KD,
+                si::force_rate(&m, self.force_kd).map_err(si_err)?,
+            ),
+            (
+                p::FORCE_KI,
+                si::force_integral(&m, self.force_ki).map_err(si_err)?,
+            ),
             (p::KM, si::torque_ratio(p::KM, self.km / n).map_err(si_err)?),
-            (p::TORQUE_LIMIT, si::torque(p::TORQUE_LIMIT, self.torque_limit).map_err(si_err)?),
+            (
+                p::TORQUE_LIMIT,
+                si::torque(p::TORQUE_LIMIT, self.torque_limit).map_err(si_err)?,
+            ),
             (
                 p::VELOCITY_LIMIT,
                 si::velocity(p::VELOCITY_LIMIT, &m, self.velocity_limit * n).map_err(si_err)?,
@@ -162,15 +193,34 @@ impl GainSet {
             (p::SUPERVISOR_TIMEOUT, self.watchdog_ms as i32),
             (p::WATCHDOG_REACTION, self.watchdog_reaction.as_u8().into()),
             (p::TELEMETRY_DIVIDER, self.telemetry_divider.into()),
+            (
+                p::STABILITY_MARGIN,
+                si::fraction(p::STABILITY_MARGIN, self.stability_fraction).map_err(si_err)?,
+            ),
         ];
         match self.friction {
             Some(f) => e.extend([
                 (p::FRICTION_ENABLE, 1),
-                (p::COULOMB_POS, si::torque(p::COULOMB_POS, f.coulomb_pos / n).map_err(si_err)?),
-                (p::COULOMB_NEG, si::torque(p::COULOMB_NEG, f.coulomb_neg / n).map_err(si_err)?),
-                (p::VISCOUS_POS, si::damping(p::VISCOUS_POS, &m, mg(f.viscous)).map_err(si_err)?),
-                (p::VISCOUS_NEG, si::damping(p::VISCOUS_NEG, &m, mg(f.viscous)).map_err(si_err)?),
-                (p::UNDER_COMPENSATION, si::fraction(p::UNDER_COMPENSATION, f.under).map_err(si_err)?),
+                (
+                    p::COULOMB_POS,
+                    si::torque(p::COULOMB_POS, f.coulomb_pos / n).map_err(si_err)?,
+                ),
+                (
+                    p::COULOMB_NEG,
+                    si::torque(p::COULOMB_NEG, f.coulomb_neg / n).map_err(si_err)?,
+                ),
+                (
+                    p::VISCOUS_POS,
+                    si::damping(p::VISCOUS_POS, &m, mg(f.viscous)).map_err(si_err)?,
+                ),
+                (
+                    p::VISCOUS_NEG,
+                    si::damping(p::VISCOUS_NEG, &m, mg(f.viscous)).map_err(si_err)?,
+                ),
+                (
+                    p::UNDER_COMPENSATION,
+                    si::fraction(p::UNDER_COMPENSATION, f.under).map_err(si_err)?,
+                ),
                 (
                     p::FRICTION_DEADBAND,
                     si::velocity(p::FRICTION_DEADBAND, &m, f.ramp_velocity * n).map_err(si_err)?,
@@ -185,22 +235,22 @@ impl GainSet {
 /// Runs the card's own configuration check (conversion + §2.9 stability guard) on the card
 /// defaults overlaid with `entries`, for `mode`. `Err` says what the card would refuse.
 pub fn check(entries: &[(u16, i32)], mode: Mode) -> Result<()> {
-    let mut st = Staging::new();
     for &(id, v) in entries {
-        st.push(0, id, v)
-            .map_err(|s| anyhow!("param {id:#06x}: {}", s.name()))?;
         if let Err(s) = controller::card::store::check_write(id, v, false) {
             let name = p::lookup(id).map(|d| d.name).unwrap_or("?");
             return Err(anyhow!("param `{name}` = {v}: {}", s.name()));
         }
     }
-    let store = st.applied_to(&ParamStore::new());
-    config::build(&store, Some(mode)).map(|_| ()).map_err(|e| match e {
-        config::ConfigError::Unstable { why } => anyhow!(
-            "the stability guard refuses these gains ({why:?}): outside the discrete \
+    let mut store = ParamStore::new();
+    store.apply(entries);
+    config::build(&store, Some(mode))
+        .map(|_| ())
+        .map_err(|e| match e {
+            config::ConfigError::Unstable { why } => anyhow!(
+                "the stability guard refuses these gains ({why:?}): outside the discrete \
              rigid-rotor PD region of thesis §2.9 with the configured rotor inertia and period \
              (use --force to send anyway)"
-        ),
-        other => anyhow!("the card would refuse this set: {other:?}"),
-    })
+            ),
+            other => anyhow!("the card would refuse this set: {other:?}"),
+        })
 }

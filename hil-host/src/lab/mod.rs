@@ -110,12 +110,16 @@ impl Lab {
             scenario.target,
             scenario.trajectory.clone(),
             scenario.rate_hz,
-            Some(scenario.duration_s),
+            Some(scenario.streaming_s()),
         );
         Ok(Lab {
             card: CardNode::new(opts.node, true).map_err(|e| anyhow!("card: {e:?}"))?,
             plant: PlantNode::new(plant, opts.node),
-            recorder: Recorder::new(opts.node, scenario.scale.motor_cpr, scenario.scale.gear_ratio),
+            recorder: Recorder::new(
+                opts.node,
+                scenario.scale.motor_cpr,
+                scenario.scale.gear_ratio,
+            ),
             supervisor,
             card_bus: hub.attach("card"),
             plant_bus: hub.attach("plant"),
@@ -155,7 +159,8 @@ impl Lab {
             self.plant.plant_mut().set_environment(env)?;
         }
         // 1. supervisor (its tick count is the sensor count, like on a real bus)
-        if self.supervisor_dies_at.is_none_or(|d| self.tick < d) {
+        let sup_alive = self.supervisor_dies_at.is_none_or(|d| self.tick < d);
+        if sup_alive {
             for m in self.supervisor.on_tick(self.tick) {
                 Self::send(&mut self.sup_bus, self.node, &m)?;
             }
@@ -186,6 +191,9 @@ impl Lab {
         }
         // 5. supervisor hears the card
         while let Some(f) = self.sup_bus.try_recv()? {
+            if !sup_alive {
+                continue;
+            }
             if let Ok((node, m)) = Message::decode(&f) {
                 self.supervisor.on_message(node, &m);
             }

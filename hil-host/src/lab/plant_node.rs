@@ -88,7 +88,10 @@ impl PlantNode {
         let s = &self.sensors;
         let mut out = Vec::with_capacity(2);
         if let Some(c) = s.output_counts {
-            let m = Message::OutputEncoder(OutputEncoder { output_counts: c as u32, seq: self.seq });
+            let m = Message::OutputEncoder(OutputEncoder {
+                output_counts: c as u32,
+                seq: self.seq,
+            });
             out.extend(m.encode::<ClassicFrame>(self.node).ok());
         }
         let lsb = (s.torque / OUTPUT_TORQUE_LSB).round();
@@ -99,7 +102,11 @@ impl PlantNode {
             output_encoder: s.output_counts.is_some(),
             encoder_error: false,
         };
-        out.extend(Message::Sensor(sensor).encode::<ClassicFrame>(self.node).ok());
+        out.extend(
+            Message::Sensor(sensor)
+                .encode::<ClassicFrame>(self.node)
+                .ok(),
+        );
         out
     }
 

@@ -21,7 +21,9 @@ fn range(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
 pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Result<()> {
     let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| anyhow!("{e}"))?;
+    let root = root
+        .titled(title, ("sans-serif", 22))
+        .map_err(|e| anyhow!("{e}"))?;
     let panels = root.split_evenly((3, 1));
     let t0 = rows.first().map(|r| r.time_s).unwrap_or(0.0);
     let t1 = rows.last().map(|r| r.time_s).unwrap_or(1.0).max(t0 + 1e-3);
@@ -31,7 +33,11 @@ pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Resu
             "position (output rad)",
             vec![
                 ("setpoint", BLACK, Box::new(|r: &Row| r.setpoint_pos_rad)),
-                ("motor / N", BLUE, Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio)),
+                (
+                    "motor / N",
+                    BLUE,
+                    Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio),
+                ),
                 ("output", RED, Box::new(|r: &Row| r.output_pos_rad)),
             ],
         ),
@@ -64,7 +70,10 @@ pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Resu
             .map_err(|e| anyhow!("{e}"))?;
         for (name, color, f) in series {
             chart
-                .draw_series(LineSeries::new(rows.iter().map(|r| (r.time_s, f(r))), color))
+                .draw_series(LineSeries::new(
+                    rows.iter().map(|r| (r.time_s, f(r))),
+                    color,
+                ))
                 .map_err(|e| anyhow!("{e}"))?
                 .label(name)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));

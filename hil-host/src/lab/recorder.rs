@@ -117,17 +117,27 @@ impl Recorder {
     /// Also write every frame to a candump `-L` log at `path` as interface `iface`.
     pub fn write_candump(&mut self, path: &Path, iface: &str) -> Result<()> {
         let f = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-        self.candump = Some((path.to_path_buf(), CandumpWriter::new(BufWriter::new(f)), iface.to_string()));
+        self.candump = Some((
+            path.to_path_buf(),
+            CandumpWriter::new(BufWriter::new(f)),
+            iface.to_string(),
+        ));
         Ok(())
     }
 
     /// Sees one frame on the bus at time `t` (s).
     pub fn observe(&mut self, t: f64, f: &ClassicFrame) -> Result<()> {
         if let Some((path, w, iface)) = &mut self.candump {
-            w.write_frame(Timestamp::from_duration(std::time::Duration::from_secs_f64(t.max(0.0))), iface, f)
-                .with_context(|| format!("writing {}", path.display()))?;
+            w.write_frame(
+                Timestamp::from_duration(std::time::Duration::from_secs_f64(t.max(0.0))),
+                iface,
+                f,
+            )
+            .with_context(|| format!("writing {}", path.display()))?;
         }
-        let Ok((node, m)) = Message::decode(f) else { return Ok(()) };
+        let Ok((node, m)) = Message::decode(f) else {
+            return Ok(());
+        };
         if node != self.node {
             return Ok(());
         }
@@ -166,7 +176,9 @@ impl Recorder {
             motor_vel_est_rad_s: self.vel_est,
             motor_vel_rad_s: s.motor_velocity,
             output_vel_rad_s: s.output_velocity,
-            torque_cmd_nm: cmd.map(|a| f64::from(a.torque) * MOTOR_TORQUE_LSB).unwrap_or(0.0),
+            torque_cmd_nm: cmd
+                .map(|a| f64::from(a.torque) * MOTOR_TORQUE_LSB)
+                .unwrap_or(0.0),
             torque_sensor_nm: sens.torque,
             output_torque_true_nm: s.environment_torque,
             state: self.state,
@@ -177,10 +189,20 @@ impl Recorder {
             writeln!(
                 w,
                 "{:.3},{},{:.9},{:.4},{:.9},{:.9},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{},{},{}",
-                row.time_s, row.seq, row.setpoint_pos_rad, row.setpoint_torque_nm,
-                row.motor_pos_rad, row.output_pos_rad, row.motor_vel_est_rad_s,
-                row.motor_vel_rad_s, row.output_vel_rad_s, row.torque_cmd_nm,
-                row.torque_sensor_nm, row.output_torque_true_nm, row.state.name(), row.flags,
+                row.time_s,
+                row.seq,
+                row.setpoint_pos_rad,
+                row.setpoint_torque_nm,
+                row.motor_pos_rad,
+                row.output_pos_rad,
+                row.motor_vel_est_rad_s,
+                row.motor_vel_rad_s,
+                row.output_vel_rad_s,
+                row.torque_cmd_nm,
+                row.torque_sensor_nm,
+                row.output_torque_true_nm,
+                row.state.name(),
+                row.flags,
                 u8::from(row.fault)
             )
             .with_context(|| format!("writing {}", path.display()))?;
@@ -192,10 +214,12 @@ impl Recorder {
     /// Flushes both files (called at the end and on Ctrl-C).
     pub fn flush(&mut self) -> Result<()> {
         if let Some((path, w)) = &mut self.csv {
-            w.flush().with_context(|| format!("flushing {}", path.display()))?;
+            w.flush()
+                .with_context(|| format!("flushing {}", path.display()))?;
         }
         if let Some((path, w, _)) = &mut self.candump {
-            w.flush().with_context(|| format!("flushing {}", path.display()))?;
+            w.flush()
+                .with_context(|| format!("flushing {}", path.display()))?;
         }
         Ok(())
     }

@@ -71,6 +71,7 @@ pub struct Scenario {
     crank_speed: f64,
     crank_period: f64,
     wall: Option<Environment>,
+    tap_torque: f64,
 }
 
 /// Joint constants of a model (what the supervisor must know).
@@ -84,6 +85,11 @@ pub fn joint_scale(m: &Model) -> JointScale {
     }
 }
 
+/// Output stiffness (N·m/rad) at the discrete bound kp = Ke·T²/I (motor side, ×N²).
+fn kd_max_to_stiffness(kp: f64, i1: f64, period: f64, n: f64) -> f64 {
+    kp * i1 / (period * period) * n * n
+}
+
 /// Arming takes a few ticks (commit, Shutdown, Enable); the environment waits for it.
 pub const SETTLE_S: f64 = 0.2;
 
@@ -94,8 +100,12 @@ impl Scenario {
         let n = scale.gear_ratio;
         let i1 = scale.rotor_inertia;
         // Motor-side damping giving kd = Be·T/I ≈ 0.6 (§2.9: well inside 0 < kd < 2),
-        // expressed at the output (×N²).
+        // expressed at the output (×N²): the damper emulation's level and quick-stop damping.
         let be_out = 0.6 * i1 / scale.period_s * n * n;
+        // Reflected + output inertia the position loops move, and ζ ≈ 0.7 damping for a
+        // stiffness k on it.
+        let j_out = i1 * n * n + model.plant.output_inertia.value;
+        let zeta_damping = |k: f64| 1.4 * (k * j_out).sqrt();
         let deg = std::f64::consts::PI / 180.0;
         let base = GainSet {
             torque_limit: model.motor.max_torque.value.min(3.0),
@@ -111,15 +121,24 @@ impl Scenario {
                     kind,
                     scale,
                     mode: Mode::PositionPdColocated,
-                    gains: GainSet { stiffness: k, damping: be_out, ..base },
+                    gains: GainSet {
+                        stiffness: k,
+                        damping: zeta_damping(k),
+                        ..base
+                    },
                     target: Target::Position,
-                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    trajectory: Trajectory::Step {
+                        from: 0.0,
+                        to: 0.0,
+                        at: 0.0,
+                    },
                     rate_hz: 100.0,
                     duration_s: 6.0,
                     desired: k,
                     crank_speed: 0.15,
                     crank_period: 4.0,
                     wall: None,
+                    tap_torque: 0.0,
                 }
             }
             ScenarioKind::Damper => {
@@ -130,13 +149,18 @@ impl Scenario {
                     mode: Mode::Damper,
                     gains: GainSet { damping: b, ..base },
                     target: Target::Position,
-                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    trajectory: Trajectory::Step {
+                        from: 0.0,
+                        to: 0.0,
+                        at: 0.0,
+                    },
                     rate_hz: 50.0,
                     duration_s: 6.0,
                     desired: b,
                     crank_speed: 0.0,
                     crank_period: 0.0,
                     wall: None,
+                    tap_torque: 0.0,
                 }
             }
             ScenarioKind::Step => {
@@ -145,15 +169,24 @@ impl Scenario {
                     kind,
                     scale,
                     mode: Mode::PositionPdColocated,
-                    gains: GainSet { stiffness: k, damping: be_out, ..base },
+                    gains: GainSet {
+                        stiffness: k,
+                        damping: zeta_damping(k),
+                        ..base
+                    },
                     target: Target::Position,
-                    trajectory: Trajectory::Step { from: 0.0, to: 0.1, at: 0.1 },
+                    trajectory: Trajectory::Step {
+                        from: 0.0,
+                        to: 0.1,
+                        at: 0.1,
+                    },
                     rate_hz: 200.0,
                     duration_s: 1.5,
                     desired: k,
                     crank_speed: 0.0,
                     crank_period: 0.0,
                     wall: None,
+                    tap_torque: 0.0,
                 }
             }
             ScenarioKind::Wall => Scenario {
@@ -167,35 +200,62 @@ impl Scenario {
                     ..base
                 },
                 target: Target::Force,
-                trajectory: Trajectory::Step { from: 0.0, to: 5.0, at: 0.2 },
+                trajectory: Trajectory::Step {
+                    from: 0.0,
+                    to: 5.0,
+                    at: 0.2,
+                },
                 rate_hz: 100.0,
                 duration_s: 2.0,
                 desired: 5.0,
                 crank_speed: 0.0,
                 crank_period: 0.0,
                 // Output against the torque sensor + stiff surface, Kf ≫ KT (§2.3).
-                wall: Some(Environment::Spring { stiffness: 2.0e4, damping: 20.0, rest: 0.0 }),
+                wall: Some(Environment::Spring {
+                    stiffness: 2.0e4,
+                    damping: 20.0,
+                    rest: 0.0,
+                }),
+                tap_torque: 0.0,
             },
             ScenarioKind::Backlash => {
-                // The thesis's high-gain test: 68 N·m/deg at the output.
-                let k = 68.0 / deg;
-                let kd_max = 2.0 * 0.45 * (2.0 - 0.45) / (2.0 + 0.45) * 0.5;
-                let k_lim = kd_max * i1 / (scale.period_s * scale.period_s) * n * n;
-                let k = k.min(k_lim);
-                let b = 0.45 * i1 / scale.period_s * n * n;
+                // Thesis §2.9: gains tuned against the *engaged* inertia (rotor + reflected
+                // load) are outside the discrete stability region of the rotor alone, which
+                // is all the motor feels inside the backlash gap — so it limit-cycles across
+                // the gap. The supervisor declares the engaged inertia and allows 95 % of the
+                // bound (the thesis's high-gain test asked for 68 N·m/deg at the output).
+                let engaged = i1 + model.plant.output_inertia.value / (n * n);
+                // (Be = kd·I/T must also fit its Q16.16 wire format: kd 0.5 does for every preset)
+                let kd = 0.5;
+                let kp = 0.95 * 2.0 * kd * (2.0 - kd) / (2.0 + kd);
+                let k = (68.0 / deg).min(kd_max_to_stiffness(kp, engaged, scale.period_s, n));
+                let b = kd * engaged / scale.period_s * n * n;
                 Scenario {
                     kind,
-                    scale,
+                    scale: JointScale {
+                        rotor_inertia: engaged,
+                        ..scale
+                    },
                     mode: Mode::PositionPdColocated,
-                    gains: GainSet { stiffness: k, damping: b, ..base },
+                    gains: GainSet {
+                        stiffness: k,
+                        damping: b,
+                        stability_fraction: 1.0,
+                        ..base
+                    },
                     target: Target::Position,
-                    trajectory: Trajectory::Step { from: 0.0, to: 0.0, at: 0.0 },
+                    trajectory: Trajectory::Step {
+                        from: 0.0,
+                        to: 0.0,
+                        at: 0.0,
+                    },
                     rate_hz: 100.0,
                     duration_s: 3.0,
                     desired: k,
                     crank_speed: 0.0,
                     crank_period: 0.0,
                     wall: None,
+                    tap_torque: 1.5 * model.motor.max_torque.value * n,
                 }
             }
         };
@@ -212,8 +272,14 @@ impl Scenario {
             ScenarioKind::Stiffness if ts > 0.0 => {
                 // triangle: +speed for a quarter period, −speed for half, +speed again
                 let ph = (ts / self.crank_period).fract();
-                let sign = if !(0.25..0.75).contains(&ph) { 1.0 } else { -1.0 };
-                Environment::Crank { speed: sign * self.crank_speed }
+                let sign = if !(0.25..0.75).contains(&ph) {
+                    1.0
+                } else {
+                    -1.0
+                };
+                Environment::Crank {
+                    speed: sign * self.crank_speed,
+                }
             }
             ScenarioKind::Damper if ts > 0.0 => {
                 let speeds = [0.05, -0.05, 0.1, -0.1, 0.2, -0.2];
@@ -221,11 +287,21 @@ impl Scenario {
                 Environment::Crank { speed: speeds[i] }
             }
             ScenarioKind::Wall => self.wall.unwrap_or(Environment::Free),
+            // "tap the output" (thesis §5 limit-cycle tests): a short torque pulse.
+            ScenarioKind::Backlash if (0.5..0.52).contains(&ts) => Environment::Torque {
+                torque: self.tap_torque,
+            },
             _ => Environment::Free,
         }
     }
 
-    /// Ticks to run: settling + streaming + a little margin.
+    /// Seconds the supervisor streams before it disables the card: the whole scenario, so
+    /// every window the summary looks at is under control.
+    pub fn streaming_s(&self) -> f64 {
+        SETTLE_S + self.duration_s
+    }
+
+    /// Ticks to run: settling + the experiment (the supervisor's `Disable` comes after).
     pub fn ticks(&self) -> u64 {
         ((SETTLE_S + self.duration_s) * 1000.0).round() as u64
     }

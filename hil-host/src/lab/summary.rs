@@ -57,13 +57,19 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
     let mut s = Summary::default();
     let n = sc.scale.gear_ratio;
     let run: Vec<&Row> = rows.iter().filter(|r| r.time_s > SETTLE_S).collect();
-    let peak = rows.iter().map(|r| r.torque_cmd_nm.abs()).fold(0.0, f64::max);
+    let peak = rows
+        .iter()
+        .map(|r| r.torque_cmd_nm.abs())
+        .fold(0.0, f64::max);
     // Tracking of the position setpoint by the motor encoder (colocated), output rad.
     let err = |r: &&Row| r.setpoint_pos_rad - r.motor_pos_rad / n;
     match sc.kind {
         ScenarioKind::Stiffness => {
             let crank: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + 0.3).collect();
-            let x: Vec<f64> = crank.iter().map(|r| r.output_pos_rad - r.setpoint_pos_rad).collect();
+            let x: Vec<f64> = crank
+                .iter()
+                .map(|r| r.output_pos_rad - r.setpoint_pos_rad)
+                .collect();
             let y: Vec<f64> = crank.iter().map(|r| -r.torque_sensor_nm).collect();
             let (_, k) = fit_line(&x, &y);
             s.push("desired stiffness", sc.desired, "N·m/rad (output)");
@@ -88,7 +94,10 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
             for seg in 0..6 {
                 let t0 = SETTLE_S + seg as f64 + 0.4;
                 let t1 = SETTLE_S + seg as f64 + 0.95;
-                let part: Vec<&&Row> = run.iter().filter(|r| r.time_s > t0 && r.time_s < t1).collect();
+                let part: Vec<&&Row> = run
+                    .iter()
+                    .filter(|r| r.time_s > t0 && r.time_s < t1)
+                    .collect();
                 if part.is_empty() {
                     continue;
                 }
@@ -106,9 +115,17 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
         ScenarioKind::Step => {
             let target = run.last().map(|r| r.setpoint_pos_rad).unwrap_or(0.0);
             let after: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + 0.1).collect();
-            let maxpos = after.iter().map(|r| r.motor_pos_rad / n).fold(f64::NEG_INFINITY, f64::max);
-            let over = if target != 0.0 { ((maxpos - target) / target * 100.0).max(0.0) } else { 0.0 };
-            let band = (0.02 * target.abs()).max(2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n);
+            let maxpos = after
+                .iter()
+                .map(|r| r.motor_pos_rad / n)
+                .fold(f64::NEG_INFINITY, f64::max);
+            let over = if target != 0.0 {
+                ((maxpos - target) / target * 100.0).max(0.0)
+            } else {
+                0.0
+            };
+            let band =
+                (0.02 * target.abs()).max(2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n);
             let settle = after
                 .iter()
                 .rposition(|r| (r.motor_pos_rad / n - target).abs() > band)
@@ -123,30 +140,65 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
             s.push("steady-state error", ss, "rad (output)");
         }
         ScenarioKind::Wall => {
-            let late: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + sc.duration_s - 0.5).collect();
+            let late: Vec<&&Row> = run
+                .iter()
+                .filter(|r| r.time_s > SETTLE_S + sc.duration_s - 0.5)
+                .collect();
             let m = late.len().max(1) as f64;
-            let mean_err = late.iter().map(|r| r.setpoint_torque_nm - r.torque_sensor_nm).sum::<f64>() / m;
+            let mean_err = late
+                .iter()
+                .map(|r| r.setpoint_torque_nm - r.torque_sensor_nm)
+                .sum::<f64>()
+                / m;
             s.push("desired contact torque", sc.desired, "N·m (output)");
             s.push("steady force error", mean_err, "N·m");
-            s.push("force error RMS (last 0.5 s)", rms(late.iter().map(|r| r.setpoint_torque_nm - r.torque_sensor_nm)), "N·m");
+            s.push(
+                "force error RMS (last 0.5 s)",
+                rms(late
+                    .iter()
+                    .map(|r| r.setpoint_torque_nm - r.torque_sensor_nm)),
+                "N·m",
+            );
         }
         ScenarioKind::Backlash => {
-            let late: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + sc.duration_s - 1.0).collect();
+            let late: Vec<&&Row> = run
+                .iter()
+                .filter(|r| r.time_s > SETTLE_S + sc.duration_s - 1.0)
+                .collect();
             let pk = |f: &dyn Fn(&Row) -> f64| {
                 let hi = late.iter().map(|r| f(r)).fold(f64::NEG_INFINITY, f64::max);
                 let lo = late.iter().map(|r| f(r)).fold(f64::INFINITY, f64::min);
                 (hi - lo).to_degrees()
             };
-            s.push("motor limit cycle p-p", pk(&|r| r.motor_pos_rad / n), "deg (output)");
-            s.push("output limit cycle p-p", pk(&|r| r.output_pos_rad), "deg (output)");
+            s.push(
+                "motor limit cycle p-p",
+                pk(&|r| r.motor_pos_rad / n),
+                "deg (output)",
+            );
+            s.push(
+                "output limit cycle p-p",
+                pk(&|r| r.output_pos_rad),
+                "deg (output)",
+            );
         }
     }
-    if matches!(sc.kind, ScenarioKind::Stiffness | ScenarioKind::Step | ScenarioKind::Backlash) {
-        s.push("tracking error RMS", rms(run.iter().map(err)), "rad (output)");
+    if matches!(
+        sc.kind,
+        ScenarioKind::Stiffness | ScenarioKind::Step | ScenarioKind::Backlash
+    ) {
+        s.push(
+            "tracking error RMS",
+            rms(run.iter().map(err)),
+            "rad (output)",
+        );
     }
     s.push("peak torque command", peak, "N·m (motor)");
     s.push("bus load (exact bits)", bus_load * 100.0, "% of 1 Mbit/s");
-    s.push("bus load (worst-case stuffing)", bus_load_worst * 100.0, "% of 1 Mbit/s");
+    s.push(
+        "bus load (worst-case stuffing)",
+        bus_load_worst * 100.0,
+        "% of 1 Mbit/s",
+    );
     s
 }
 
@@ -179,7 +231,10 @@ mod tests {
         let y = [3.0, 5.0, 7.0];
         assert_eq!(fit_line(&x, &y), (1.0, 2.0));
         let w = [0.1, -0.1, 0.2, -0.2];
-        let t: Vec<f64> = w.iter().map(|&v: &f64| 0.5 * v.signum() + 3.0 * v).collect();
+        let t: Vec<f64> = w
+            .iter()
+            .map(|&v: &f64| 0.5 * v.signum() + 3.0 * v)
+            .collect();
         let (b, c) = fit_viscous_coulomb(&w, &t);
         assert!((b - 3.0).abs() < 1e-9 && (c - 0.5).abs() < 1e-9);
     }

@@ -71,18 +71,33 @@ pub enum Event {
 /// A fault code in words, with what to do about it.
 pub fn fault_words(code: FaultCode, detail: i32) -> String {
     match code {
-        FaultCode::SensorTimeout => format!("no sensor frame for {detail} µs — is the plant node (or encoder ISR) running?"),
-        FaultCode::SupervisorWatchdog => format!("supervisor silent for {detail} ms — the card stopped the joint (watchdog)"),
-        FaultCode::BusError => format!("CAN bus error (class {detail:#x}) — check wiring/termination or the interface state"),
-        FaultCode::Overflow => "arithmetic saturation in the control path — gains too high for the format".into(),
+        FaultCode::SensorTimeout => {
+            format!("no sensor frame for {detail} µs — is the plant node (or encoder ISR) running?")
+        }
+        FaultCode::SupervisorWatchdog => {
+            format!("supervisor silent for {detail} ms — the card stopped the joint (watchdog)")
+        }
+        FaultCode::BusError => format!(
+            "CAN bus error (class {detail:#x}) — check wiring/termination or the interface state"
+        ),
+        FaultCode::Overflow => {
+            "arithmetic saturation in the control path — gains too high for the format".into()
+        }
         FaultCode::PositionLimit => format!("position {detail} counts outside the soft limits"),
         FaultCode::VelocityLimit => format!("velocity {detail} counts/s above the velocity limit"),
-        FaultCode::OutputTorqueLimit => format!("output torque {:.2} N·m above its limit", f64::from(detail) * 0.01),
+        FaultCode::OutputTorqueLimit => format!(
+            "output torque {:.2} N·m above its limit",
+            f64::from(detail) * 0.01
+        ),
         FaultCode::ConfigRejected => {
-            let name = p::lookup(u16::try_from(detail).unwrap_or(0)).map(|d| d.name).unwrap_or("?");
+            let name = p::lookup(u16::try_from(detail).unwrap_or(0))
+                .map(|d| d.name)
+                .unwrap_or("?");
             format!("configuration rejected on arming (parameter `{name}`)")
         }
-        FaultCode::SensorInvalid => "a sensor the mode needs is missing or reported an error".into(),
+        FaultCode::SensorInvalid => {
+            "a sensor the mode needs is missing or reported an error".into()
+        }
         FaultCode::SequenceError => format!("sensor frames lost (expected/got {:#06x})", detail),
         FaultCode::PowerStage => format!("power stage fault (status {detail:#x})"),
         FaultCode::Internal => format!("internal card error at {detail}"),
@@ -194,16 +209,28 @@ impl Supervisor {
                 if tick == 1 || (self.set_seq == 0) {
                     self.set_seq = self.set_seq.wrapping_add(1);
                     for &(id, v) in &self.entries {
-                        out.push(Message::ParamWrite(ParamWrite { param_id: id, value: v, set_seq: self.set_seq }));
+                        out.push(Message::ParamWrite(ParamWrite {
+                            param_id: id,
+                            value: v,
+                            set_seq: self.set_seq,
+                        }));
                     }
                     let sum = SetChecksum::of(&self.entries);
-                    out.push(Message::ParamCommit(ParamCommit { set_seq: self.set_seq, count: sum.count(), crc: sum.crc() }));
+                    out.push(Message::ParamCommit(ParamCommit {
+                        set_seq: self.set_seq,
+                        count: sum.count(),
+                        crc: sum.crc(),
+                    }));
                 } else if tick.is_multiple_of(50) {
                     out.push(Message::ControlWord(ControlWord::KeepAlive));
                 }
             }
             Phase::Arming => {
-                let cw = if self.arm_step == 0 { ControlWord::Shutdown } else { ControlWord::Enable(self.mode) };
+                let cw = if self.arm_step == 0 {
+                    ControlWord::Shutdown
+                } else {
+                    ControlWord::Enable(self.mode)
+                };
                 self.arm_step += 1;
                 out.push(Message::ControlWord(cw));
                 if self.arm_step == 2 {
@@ -246,7 +273,10 @@ impl Supervisor {
                 (_, ParamStatus::Ok) => {}
                 (to, st) => {
                     let name = p::lookup(r.param_id).map(|d| d.name).unwrap_or("-");
-                    self.events.push(Event::Refused(format!("{to:?} refused: {} (param `{name}`)", st.name())));
+                    self.events.push(Event::Refused(format!(
+                        "{to:?} refused: {} (param `{name}`)",
+                        st.name()
+                    )));
                     if to == ReplyTo::Commit {
                         self.phase = Phase::Stopped;
                     }
@@ -263,7 +293,8 @@ impl Supervisor {
             }
             Message::Heartbeat(h) => self.telemetry.state = Some(h.state),
             Message::Fault(f) => {
-                self.events.push(Event::Fault(fault_words(f.code, f.detail)));
+                self.events
+                    .push(Event::Fault(fault_words(f.code, f.detail)));
                 self.phase = Phase::Stopped;
             }
             _ => {}

@@ -61,7 +61,10 @@ impl PlantStats {
     /// Bus load over simulated time (ticks × 1 ms) at 1 Mbit/s, (exact, worst-case).
     pub fn bus_load(&self) -> (f64, f64) {
         let bits = super::BITRATE as f64 * self.ticks as f64 * 1e-3;
-        (self.exact_bits as f64 / bits.max(1.0), self.worst_bits as f64 / bits.max(1.0))
+        (
+            self.exact_bits as f64 / bits.max(1.0),
+            self.worst_bits as f64 / bits.max(1.0),
+        )
     }
 }
 
@@ -163,7 +166,12 @@ pub fn run_plant(
 /// The card loop: runs until `stop`. In lockstep the card's time is its tick count; when no
 /// sensor frame arrives for a while (a dead plant), wall time since the last one is added so
 /// the sensor timeout still fires.
-pub fn run_card(bus: &mut dyn CanBus, card: &mut CardNode, lockstep: bool, stop: &AtomicBool) -> Result<()> {
+pub fn run_card(
+    bus: &mut dyn CanBus,
+    card: &mut CardNode,
+    lockstep: bool,
+    stop: &AtomicBool,
+) -> Result<()> {
     let t0 = Instant::now();
     let mut last_rx = Instant::now();
     while !stop.load(Ordering::Relaxed) {
@@ -223,7 +231,8 @@ pub fn run_supervisor(
                 if !f.is_extended() && f.raw_id() == sensor_id {
                     tick += 1;
                     for m in sup.on_tick(tick) {
-                        let g: ClassicFrame = m.encode(node).map_err(|e| anyhow!("encode: {e:?}"))?;
+                        let g: ClassicFrame =
+                            m.encode(node).map_err(|e| anyhow!("encode: {e:?}"))?;
                         bus.send(&g)?;
                     }
                     on_tick(tick, sup);

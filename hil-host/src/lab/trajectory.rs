@@ -63,15 +63,30 @@ impl Trajectory {
                 }
             }
             Trajectory::Ramp { from, to, duration } => {
-                let s = if *duration > 0.0 { (t / duration).clamp(0.0, 1.0) } else { 1.0 };
+                let s = if *duration > 0.0 {
+                    (t / duration).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                };
                 from + (to - from) * s
             }
-            Trajectory::Sine { offset, amplitude, freq } => {
-                offset + amplitude * (std::f64::consts::TAU * freq * t).sin()
-            }
-            Trajectory::Chirp { amplitude, f0, f1, duration } => {
+            Trajectory::Sine {
+                offset,
+                amplitude,
+                freq,
+            } => offset + amplitude * (std::f64::consts::TAU * freq * t).sin(),
+            Trajectory::Chirp {
+                amplitude,
+                f0,
+                f1,
+                duration,
+            } => {
                 let tt = t.clamp(0.0, *duration);
-                let k = if *duration > 0.0 { (f1 - f0) / duration } else { 0.0 };
+                let k = if *duration > 0.0 {
+                    (f1 - f0) / duration
+                } else {
+                    0.0
+                };
                 amplitude * (std::f64::consts::TAU * (f0 * tt + 0.5 * k * tt * tt)).sin()
             }
             Trajectory::Samples(s) => interpolate(s, t),
@@ -137,12 +152,21 @@ impl Trajectory {
             let get = |i: usize| -> Result<f64> {
                 let s = rec.get(i).unwrap_or("");
                 s.trim().parse::<f64>().with_context(|| {
-                    format!("{}:{}:{}: `{s}` is not a number", path.display(), k + 2, i + 1)
+                    format!(
+                        "{}:{}:{}: `{s}` is not a number",
+                        path.display(),
+                        k + 2,
+                        i + 1
+                    )
                 })
             };
             let (t, v) = (get(ti)?, get(vi)?);
             if t <= last_t || t.is_nan() || !v.is_finite() {
-                bail!("{}:{}: time must increase and values be finite", path.display(), k + 2);
+                bail!(
+                    "{}:{}: time must increase and values be finite",
+                    path.display(),
+                    k + 2
+                );
             }
             last_t = t;
             out.push((t, v));
