@@ -1,0 +1,609 @@
+//! The HIL commands: `demo`, `run`, `card`, `plant`, `supervise`, `replay`, `bench`.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use controller::proto::{Message, Mode, NodeId};
+use indicatif::{ProgressBar, ProgressStyle};
+use sim_plant::{Model, Plant, PlantOptions};
+
+use crate::bus::{open_bus, CanBus};
+use crate::candump::{read_log, LoggedFrame};
+use crate::lab::card_node::CardNode;
+use crate::lab::gains;
+use crate::lab::plant_node::PlantNode;
+use crate::lab::plot::plot_run;
+use crate::lab::recorder::Recorder;
+use crate::lab::scenario::{Scenario, ScenarioKind};
+use crate::lab::summary::summarize;
+use crate::lab::supervisor::{Event, Phase, Supervisor};
+use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantStats};
+use crate::lab::trajectory::Trajectory;
+use crate::lab::{Lab, LabOptions};
+
+/// `demo` examples.
+pub const DEMO_EXAMPLES: &str = "Examples:
+  hil-host demo                                   # stiffness emulation on the WHOI cable reducer
+  hil-host demo --scenario all --preset harmonic-drive-60
+  hil-host demo --scenario backlash --preset cyclo-29 --out results/";
+/// `run` examples.
+pub const RUN_EXAMPLES: &str = "Examples:
+  hil-host run --bus vcan0 --scenario step --preset harmonic-drive-60
+  hil-host run --bus vcan0 --scenario stiffness --realtime --csv run.csv --candump run.log
+  hil-host run --bus inproc --scenario damper        # threads on the in-process bus";
+/// `card` examples.
+pub const CARD_EXAMPLES: &str = "Examples:
+  hil-host card --bus vcan0 --node 1
+  hil-host card --bus can0 --node 3 --realtime";
+/// `plant` examples.
+pub const PLANT_EXAMPLES: &str = "Examples:
+  hil-host plant --bus vcan0 --node 1 --preset whoi-cable-30 --scenario stiffness --csv rec.csv
+  hil-host plant --bus vcan0 --model my-joint.toml --seconds 10 --realtime";
+/// `supervise` examples.
+pub const SUPERVISE_EXAMPLES: &str = "Examples:
+  hil-host supervise --bus vcan0 --node 1 --preset whoi-cable-30 --scenario step
+  hil-host supervise --bus vcan0 --preset harmonic-drive-60 --mode position-pd-colocated \\
+      --stiffness 60 --damping 5 --trajectory sine:0.1:0.5 --rate 200 --seconds 10";
+/// `replay` examples.
+pub const REPLAY_EXAMPLES: &str = "Examples:
+  hil-host replay run.log                 # decode every frame of a candump -L log
+  hil-host replay run.log --bus vcan0     # put it back on a bus with its original timing";
+/// `bench` examples.
+pub const BENCH_EXAMPLES: &str = "Examples:
+  hil-host bench                          # lockstep cycles/s on the in-process bus, bus load
+  hil-host bench --bus vcan0 --seconds 5";
+
+/// Which plant: a thesis preset or a model file.
+#[derive(Debug, Clone, Args)]
+pub struct PlantChoice {
+    /// Thesis preset (see `--preset list`).
+    #[arg(long, default_value = "whoi-cable-30")]
+    pub preset: String,
+    /// A sim-plant model TOML (overrides --preset).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+}
+
+impl PlantChoice {
+    /// Loads the model.
+    pub fn load(&self) -> Result<Model> {
+        if let Some(p) = &self.model {
+            return Ok(Model::load(p)?);
+        }
+        if self.preset == "list" {
+            bail!("presets: {}", sim_plant::preset_names().join(", "));
+        }
+        sim_plant::preset(&self.preset).ok_or_else(|| {
+            anyhow!(
+                "unknown preset `{}`; one of: {}",
+                self.preset,
+                sim_plant::preset_names().join(", ")
+            )
+        })
+    }
+    fn label(&self) -> String {
+        match &self.model {
+            Some(p) => p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            None => self.preset.clone(),
+        }
+    }
+}
+
+fn node(n: u8) -> Result<NodeId> {
+    NodeId::new(n)
+        .filter(|n| !n.is_broadcast())
+        .ok_or_else(|| anyhow!("--node must be 1..=127, got {n}"))
+}
+
+fn stop_on_ctrl_c() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    // A second handler registration (tests run several commands in one process) is harmless.
+    let _ = ctrlc::set_handler(move || s.store(true, Ordering::SeqCst));
+    stop
+}
+
+fn bar(len: u64, quiet: bool) -> ProgressBar {
+    if quiet || len < 5_000 {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    if let Ok(st) = ProgressStyle::with_template("{bar:40} {pos}/{len} ticks {msg}") {
+        pb.set_style(st);
+    }
+    pb
+}
+
+/// `hil-host demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Experiment (or `all`).
+    #[arg(long, default_value = "stiffness")]
+    pub scenario: String,
+    #[command(flatten)]
+    pub plant: PlantChoice,
+    /// Seed of the sensor noise (same seed → identical recording).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory for the CSV, candump log and PNG.
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
+    if spec == "all" {
+        return Ok(ScenarioKind::ALL.to_vec());
+    }
+    ScenarioKind::ALL
+        .iter()
+        .copied()
+        .find(|k| k.name() == spec)
+        .map(|k| vec![k])
+        .ok_or_else(|| {
+            let names: Vec<_> = ScenarioKind::ALL.iter().map(|k| k.name()).collect();
+            anyhow!("unknown scenario `{spec}`; one of: {}, all", names.join(", "))
+        })
+}
+
+/// Runs the zero-setup demo.
+pub fn demo(a: DemoArgs) -> Result<()> {
+    let model = a.plant.load()?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let stop = stop_on_ctrl_c();
+    for kind in scenarios(&a.scenario)? {
+        let sc = Scenario::new(kind, &model)?;
+        let mut lab = Lab::new(&model, sc, &LabOptions { seed: a.seed, ..LabOptions::default() })?;
+        let stem = a.out.join(format!("demo-{}-{}", kind.name(), a.plant.label()));
+        let (csv, log, png) = (stem.with_extension("csv"), stem.with_extension("log"), stem.with_extension("png"));
+        lab.recorder.write_csv(&csv)?;
+        lab.recorder.write_candump(&log, "inproc")?;
+        let pb = bar(lab.scenario.ticks(), a.quiet);
+        let n = lab.scenario.ticks();
+        while lab.time() * 1000.0 < n as f64 && !stop.load(Ordering::Relaxed) {
+            lab.step()?;
+            pb.set_position((lab.time() * 1000.0) as u64);
+        }
+        pb.finish_and_clear();
+        lab.recorder.flush()?;
+        println!(
+            "\n{} on {} — card + plant + supervisor on the in-process bus, lockstep, seed {}",
+            kind.name(),
+            a.plant.label(),
+            a.seed
+        );
+        println!("{}", lab.summary().table());
+        for e in &lab.supervisor.events {
+            if !matches!(e, Event::Committed) {
+                println!("  supervisor: {e:?}");
+            }
+        }
+        plot_run(&png, &format!("{} — {}", kind.name(), a.plant.label()), &lab.recorder.rows, lab.scenario.scale.gear_ratio)?;
+        println!("  wrote {}, {}, {}", csv.display(), log.display(), png.display());
+        if stop.load(Ordering::Relaxed) {
+            println!("  interrupted: recording flushed");
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Options shared by the nodes on a real bus.
+#[derive(Debug, Clone, Args)]
+pub struct BusArgs {
+    /// Bus: a SocketCAN interface (vcan0, can0) or `inproc`.
+    #[arg(long, default_value = "vcan0")]
+    pub bus: String,
+    /// Joint (node) number, 1..=127.
+    #[arg(long, default_value_t = 1)]
+    pub node: u8,
+    /// Real time (1 kHz wall clock) instead of lockstep.
+    #[arg(long)]
+    pub realtime: bool,
+}
+
+fn open(b: &BusArgs) -> Result<Box<dyn CanBus>> {
+    open_bus(&b.bus).map_err(|e| anyhow!("{e}"))
+}
+
+/// `hil-host card`.
+#[derive(Debug, Args)]
+pub struct CardArgs {
+    #[command(flatten)]
+    pub bus: BusArgs,
+}
+
+/// Runs the card node until Ctrl-C.
+pub fn card(a: CardArgs) -> Result<()> {
+    let mut bus = open(&a.bus)?;
+    let mut card = CardNode::new(node(a.bus.node)?, !a.bus.realtime).map_err(|e| anyhow!("{e:?}"))?;
+    eprintln!("card node {} on {} ({})", a.bus.node, a.bus.bus, if a.bus.realtime { "real time" } else { "lockstep" });
+    let stop = stop_on_ctrl_c();
+    run_card(bus.as_mut(), &mut card, !a.bus.realtime, &stop)
+}
+
+/// `hil-host plant`.
+#[derive(Debug, Args)]
+pub struct PlantArgs {
+    #[command(flatten)]
+    pub bus: BusArgs,
+    #[command(flatten)]
+    pub plant: PlantChoice,
+    /// Environment schedule of this experiment (default: free output).
+    #[arg(long)]
+    pub scenario: Option<String>,
+    /// Seconds to simulate.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    /// Seed of the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Write the 1 kHz recording here.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write every frame here as a candump -L log.
+    #[arg(long)]
+    pub candump: Option<PathBuf>,
+    /// Give up waiting for one actuator frame after this many ms (lockstep).
+    #[arg(long, default_value_t = 200)]
+    pub timeout_ms: u64,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn plant_loop(
+    a: &PlantArgs,
+    bus: &mut dyn CanBus,
+    model: &Model,
+    sc: Option<&Scenario>,
+    stop: &AtomicBool,
+) -> Result<(PlantStats, Recorder)> {
+    let n = node(a.bus.node)?;
+    let env = sc.map(|s| s.environment(0.0)).unwrap_or(sim_plant::Environment::Free);
+    let plant = Plant::new(model, PlantOptions { seed: a.seed, environment: env, ..PlantOptions::default() })?;
+    let mut pn = PlantNode::new(plant, n);
+    let mut rec = Recorder::new(n, model.motor.counts_per_rev.value, model.plant.gear_ratio.value);
+    if let Some(p) = &a.csv {
+        rec.write_csv(p)?;
+    }
+    if let Some(p) = &a.candump {
+        rec.write_candump(p, &a.bus.bus)?;
+    }
+    let ticks = (a.seconds * 1000.0).round() as u64;
+    let clock = if a.bus.realtime { Clock::RealTime } else { Clock::Lockstep { timeout: Duration::from_millis(a.timeout_ms) } };
+    let pb = bar(ticks, a.quiet);
+    let st = run_plant(bus, &mut pn, sc, &mut rec, clock, ticks, stop, |k, _| pb.set_position(k))?;
+    pb.finish_and_clear();
+    Ok((st, rec))
+}
+
+fn print_plant_stats(st: &PlantStats) {
+    let (exact, worst) = st.bus_load();
+    println!("  ticks {}  missing actuator frames {}  stale {}  wall {:.2} s  ({:.0} cycles/s)", st.ticks, st.missing, st.stale, st.wall.as_secs_f64(), st.cycles_per_second());
+    println!("  bus load seen by the plant: {:.1} % exact, {:.1} % worst-case stuffing (1 Mbit/s)", exact * 100.0, worst * 100.0);
+    if let Some((p50, p99, max)) = st.jitter_us {
+        println!("  tick lateness: p50 {p50:.0} µs  p99 {p99:.0} µs  max {max:.0} µs");
+    }
+}
+
+/// Runs the plant node for `--seconds`.
+pub fn plant(a: PlantArgs) -> Result<()> {
+    let model = a.plant.load()?;
+    let sc = match &a.scenario {
+        Some(s) => Some(Scenario::new(scenarios(s)?[0], &model)?),
+        None => None,
+    };
+    let mut bus = open(&a.bus)?;
+    let stop = stop_on_ctrl_c();
+    let (st, _) = plant_loop(&a, bus.as_mut(), &model, sc.as_ref(), &stop)?;
+    print_plant_stats(&st);
+    Ok(())
+}
+
+/// `hil-host supervise`.
+#[derive(Debug, Args)]
+pub struct SuperviseArgs {
+    #[command(flatten)]
+    pub bus: BusArgs,
+    #[command(flatten)]
+    pub plant: PlantChoice,
+    /// A thesis experiment (gains, mode, trajectory); the flags below override parts of it.
+    #[arg(long, default_value = "step")]
+    pub scenario: String,
+    /// Mode to arm (e.g. position-pd-colocated, damper, force-pi, impedance-colocated).
+    #[arg(long)]
+    pub mode: Option<String>,
+    /// Desired output stiffness, N·m/rad.
+    #[arg(long)]
+    pub stiffness: Option<f64>,
+    /// Desired output damping, N·m·s/rad.
+    #[arg(long)]
+    pub damping: Option<f64>,
+    /// Setpoint trajectory: step:TO[@T], ramp:TO:S, sine:AMP:HZ, chirp:AMP:F0:F1:S, csv:FILE.
+    #[arg(long)]
+    pub trajectory: Option<String>,
+    /// Setpoint rate, Hz (20–400).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Seconds of streaming before disabling.
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Send gains even if the stability guard refuses them.
+    #[arg(long)]
+    pub force: bool,
+    /// Stop sending after this many ticks (to watch the card's watchdog react).
+    #[arg(long)]
+    pub die_after: Option<u64>,
+    /// No live telemetry line.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_mode(s: &str) -> Result<Mode> {
+    let want: String = s.chars().filter(|c| c.is_ascii_alphanumeric()).collect::<String>().to_lowercase();
+    Mode::ALL
+        .iter()
+        .copied()
+        .find(|m| m.name().to_lowercase() == want)
+        .ok_or_else(|| {
+            let names: Vec<_> = Mode::ALL.iter().map(|m| m.name()).collect();
+            anyhow!("unknown mode `{s}`; one of: {}", names.join(", "))
+        })
+}
+
+/// Builds the supervisor a `supervise` command describes (also used by `run`).
+pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, Supervisor)> {
+    let mut sc = Scenario::new(scenarios(&a.scenario)?[0], model)?;
+    if let Some(m) = &a.mode {
+        sc.mode = parse_mode(m)?;
+    }
+    if let Some(k) = a.stiffness {
+        sc.gains.stiffness = k;
+    }
+    if let Some(b) = a.damping {
+        sc.gains.damping = b;
+    }
+    if let Some(t) = &a.trajectory {
+        sc.trajectory = Trajectory::parse(t)?;
+    }
+    if let Some(r) = a.rate {
+        sc.rate_hz = r;
+    }
+    if let Some(s) = a.seconds {
+        sc.duration_s = s;
+    }
+    let entries = sc.gains.entries(&sc.scale)?;
+    if let Err(e) = gains::check(&entries, sc.mode) {
+        if a.force {
+            eprintln!("warning: {e:#} — sending anyway (--force); the card will refuse an unstable set itself");
+        } else {
+            return Err(e);
+        }
+    }
+    let sup = Supervisor::new(node(a.bus.node)?, sc.scale, entries, sc.mode, sc.target, sc.trajectory.clone(), sc.rate_hz, Some(sc.streaming_s()));
+    Ok((sc, sup))
+}
+
+/// Runs the supervisor until its script ends (or Ctrl-C).
+pub fn supervise(a: SuperviseArgs) -> Result<()> {
+    let model = a.plant.load()?;
+    let (_, mut sup) = build_supervisor(&a, &model)?;
+    let mut bus = open(&a.bus)?;
+    let stop = stop_on_ctrl_c();
+    let die = a.die_after;
+    let quiet = a.quiet;
+    let mut seen = 0usize;
+    let ticks = run_supervisor(bus.as_mut(), &mut sup, node(a.bus.node)?, &stop, 50, |k, s| {
+        for e in s.events.iter().skip(seen) {
+            eprintln!("\n[{:>7.3} s] {}", k as f64 * 1e-3, match e {
+                Event::Committed => "parameter set committed".to_string(),
+                Event::Refused(w) => format!("REFUSED: {w}"),
+                Event::Fault(w) => format!("FAULT: {w}"),
+            });
+        }
+        seen = s.events.len();
+        if !quiet && k % 100 == 0 {
+            let t = &s.telemetry;
+            eprint!(
+                "\r[{:>7.3} s] {:?} {:?}  sp {:+.4}  pos {:+.4} rad  vel {:+.3} rad/s  τcmd {:+.3} N·m  τout {:+.2} N·m   ",
+                k as f64 * 1e-3, s.phase(), t.state, s.last_setpoint, t.position, t.velocity, t.torque_cmd, t.output_torque
+            );
+        }
+        if die.is_some_and(|d| k >= d) {
+            // simulated crash: exit without a word, as a killed supervisor would
+            std::process::exit(0);
+        }
+    })?;
+    eprintln!();
+    println!("supervisor done after {ticks} ticks, phase {:?}", sup.phase());
+    if sup.events.iter().any(|e| matches!(e, Event::Fault(_))) || sup.phase() != Phase::Stopped {
+        bail!("the run ended with a fault or before its script finished");
+    }
+    Ok(())
+}
+
+/// `hil-host run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Experiment, gains and setpoints (as for `supervise`).
+    #[command(flatten)]
+    pub sup: SuperviseArgs,
+    /// Seed of the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Write the 1 kHz recording here.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write every frame here as a candump -L log.
+    #[arg(long)]
+    pub candump: Option<PathBuf>,
+    /// Write a PNG plot here.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Card, plant and supervisor as threads, each with its own handle on the bus.
+pub fn run(a: RunArgs) -> Result<()> {
+    let model = a.sup.plant.load()?;
+    let (sc, mut sup) = build_supervisor(&a.sup, &model)?;
+    let n = node(a.sup.bus.node)?;
+    let lockstep = !a.sup.bus.realtime;
+    let stop = stop_on_ctrl_c();
+    // open all three handles first, so a missing interface fails before anything runs
+    let mut card_bus = open(&a.sup.bus)?;
+    let mut sup_bus = open(&a.sup.bus)?;
+    let mut plant_bus = open(&a.sup.bus)?;
+    let done = Arc::new(AtomicBool::new(false));
+    let card_thread = {
+        let done = done.clone();
+        std::thread::spawn(move || -> Result<()> {
+            let mut card = CardNode::new(n, lockstep).map_err(|e| anyhow!("{e:?}"))?;
+            run_card(card_bus.as_mut(), &mut card, lockstep, &done)
+        })
+    };
+    let sup_thread = {
+        let done = done.clone();
+        std::thread::spawn(move || -> Result<Supervisor> {
+            run_supervisor(sup_bus.as_mut(), &mut sup, n, &done, 20, |_, _| {})?;
+            Ok(sup)
+        })
+    };
+    let pa = PlantArgs {
+        bus: a.sup.bus.clone(),
+        plant: a.sup.plant.clone(),
+        scenario: Some(a.sup.scenario.clone()),
+        seconds: sc.streaming_s() + 0.05,
+        seed: a.seed,
+        csv: a.csv.clone(),
+        candump: a.candump.clone(),
+        timeout_ms: 200,
+        quiet: a.sup.quiet,
+    };
+    let res = plant_loop(&pa, plant_bus.as_mut(), &model, Some(&sc), &stop);
+    done.store(true, Ordering::SeqCst);
+    let sup = sup_thread.join().map_err(|_| anyhow!("supervisor thread panicked"))??;
+    card_thread.join().map_err(|_| anyhow!("card thread panicked"))??;
+    let (st, rec) = res?;
+    let (exact, worst) = st.bus_load();
+    println!("\n{} on {} over {} ({})", sc.kind.name(), a.sup.plant.label(), a.sup.bus.bus, if lockstep { "lockstep" } else { "real time" });
+    println!("{}", summarize(&sc, &rec.rows, exact, worst).table());
+    print_plant_stats(&st);
+    for e in &sup.events {
+        if !matches!(e, Event::Committed) {
+            println!("  supervisor: {e:?}");
+        }
+    }
+    if let Some(p) = &a.plot {
+        plot_run(p, &format!("{} — {}", sc.kind.name(), a.sup.plant.label()), &rec.rows, sc.scale.gear_ratio)?;
+    }
+    Ok(())
+}
+
+/// `hil-host replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// A candump -L log (from `demo`, `run`, `plant --candump`, or can-utils).
+    pub log: PathBuf,
+    /// Send the frames to this bus with their original spacing instead of printing them.
+    #[arg(long)]
+    pub bus: Option<String>,
+}
+
+/// Decodes (or replays) a candump log.
+pub fn replay(a: ReplayArgs) -> Result<()> {
+    let recs = read_log(&a.log).map_err(|e| anyhow!("{}: {e}", a.log.display()))?;
+    if let Some(spec) = &a.bus {
+        let mut bus = open_bus(spec).map_err(|e| anyhow!("{e}"))?;
+        let t0 = std::time::Instant::now();
+        let first = recs.first().map(|r| r.time.as_duration()).unwrap_or_default();
+        let mut sent = 0;
+        for r in &recs {
+            if let LoggedFrame::Can(f) = &r.frame {
+                let due = r.time.as_duration().saturating_sub(first);
+                if let Some(wait) = due.checked_sub(t0.elapsed()) {
+                    std::thread::sleep(wait);
+                }
+                bus.send(f).map_err(|e| anyhow!("{e}"))?;
+                sent += 1;
+            }
+        }
+        println!("replayed {sent} frames to {spec}");
+        return Ok(());
+    }
+    for r in &recs {
+        let t = r.time.as_duration().as_secs_f64();
+        match &r.frame {
+            LoggedFrame::Can(f) => match Message::decode(f) {
+                Ok((n, m)) => println!("{t:>14.6} {:>6} {f:<24} node {:>3} {m:?}", r.iface, n.get()),
+                Err(e) => println!("{t:>14.6} {:>6} {f:<24} (not jointlab: {e:?})", r.iface),
+            },
+            other => println!("{t:>14.6} {:>6} {other:?}", r.iface),
+        }
+    }
+    Ok(())
+}
+
+/// `hil-host bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Also measure over this SocketCAN interface (threads, lockstep).
+    #[arg(long)]
+    pub bus: Option<String>,
+    /// Simulated seconds per measurement.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    #[command(flatten)]
+    pub plant: PlantChoice,
+}
+
+/// Prints lockstep cycles per second and bus load against the protocol's figure.
+pub fn bench(a: BenchArgs) -> Result<()> {
+    let model = a.plant.load()?;
+    let mut sc = Scenario::new(ScenarioKind::Stiffness, &model)?;
+    sc.duration_s = a.seconds;
+    let mut lab = Lab::new(&model, sc.clone(), &LabOptions::default())?;
+    let t0 = std::time::Instant::now();
+    lab.run(|_, _| {})?;
+    let wall = t0.elapsed().as_secs_f64();
+    let ticks = lab.scenario.ticks() as f64;
+    let s = lab.summary();
+    println!("in-process bus, one thread, lockstep ({}):", a.plant.label());
+    println!("  {:.0} cycles/s  ({:.1}× real time)", ticks / wall, ticks / wall / 1000.0);
+    println!(
+        "  bus load measured {:.1} % exact / {:.1} % worst-case; protocol's computed figure 35.5 % (sensor + actuator + telemetry, worst case)",
+        s.get("bus load (exact bits)").unwrap_or(0.0),
+        s.get("bus load (worst-case stuffing)").unwrap_or(0.0)
+    );
+    if let Some(bus) = &a.bus {
+        let ra = RunArgs {
+            sup: SuperviseArgs {
+                bus: BusArgs { bus: bus.clone(), node: 1, realtime: false },
+                plant: a.plant.clone(),
+                scenario: "stiffness".into(),
+                mode: None,
+                stiffness: None,
+                damping: None,
+                trajectory: None,
+                rate: None,
+                seconds: Some(a.seconds),
+                force: false,
+                die_after: None,
+                quiet: true,
+            },
+            seed: 1,
+            csv: None,
+            candump: None,
+            plot: None,
+        };
+        println!("\n{bus}, three threads, lockstep:");
+        run(ra)?;
+    }
+    Ok(())
+}
