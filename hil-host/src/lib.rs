@@ -7,3 +7,4 @@
 pub mod bus;
 pub mod candump;
 pub mod lab;
+pub mod cli;

@@ -21,7 +21,7 @@ use crate::lab::recorder::Recorder;
 use crate::lab::scenario::{Scenario, ScenarioKind};
 use crate::lab::summary::summarize;
 use crate::lab::supervisor::{Event, Phase, Supervisor};
-use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantStats};
+use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantLoop, PlantStats};
 use crate::lab::trajectory::Trajectory;
 use crate::lab::{Lab, LabOptions};
 
@@ -277,9 +277,14 @@ fn plant_loop(
         rec.write_candump(p, &a.bus.bus)?;
     }
     let ticks = (a.seconds * 1000.0).round() as u64;
-    let clock = if a.bus.realtime { Clock::RealTime } else { Clock::Lockstep { timeout: Duration::from_millis(a.timeout_ms) } };
+    let mut lp = PlantLoop::lockstep(ticks);
+    if a.bus.realtime {
+        lp.clock = Clock::RealTime;
+    } else {
+        lp.clock = Clock::Lockstep { timeout: Duration::from_millis(a.timeout_ms) };
+    }
     let pb = bar(ticks, a.quiet);
-    let st = run_plant(bus, &mut pn, sc, &mut rec, clock, ticks, stop, |k, _| pb.set_position(k))?;
+    let st = run_plant(bus, &mut pn, sc, &mut rec, lp, stop, |k, _| pb.set_position(k))?;
     pb.finish_and_clear();
     Ok((st, rec))
 }

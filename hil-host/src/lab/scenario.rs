@@ -164,7 +164,8 @@ impl Scenario {
                 }
             }
             ScenarioKind::Step => {
-                let k = 1.1 / deg;
+                // the thesis's "high" desired output stiffness, 7.1 N·m/deg
+                let k = 7.1 / deg;
                 Scenario {
                     kind,
                     scale,

@@ -126,12 +126,18 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
             };
             let band =
                 (0.02 * target.abs()).max(2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n);
-            let settle = after
+            // Last time the response left the ±2 % band; NaN if it ends outside (friction
+            // can stop a PD short of the band: the thesis's error band ≈ stiction/K).
+            let settle = match after
                 .iter()
                 .rposition(|r| (r.motor_pos_rad / n - target).abs() > band)
-                .and_then(|i| after.get(i + 1))
-                .map(|r| r.time_s - SETTLE_S - 0.1)
-                .unwrap_or(0.0);
+            {
+                None => 0.0,
+                Some(i) => after
+                    .get(i + 1)
+                    .map(|r| r.time_s - SETTLE_S - 0.1)
+                    .unwrap_or(f64::NAN),
+            };
             let last = after.iter().rev().take(200);
             let ss = last.map(|r| err(r).abs()).fold(0.0, f64::max);
             s.push("step size", target, "rad (output)");

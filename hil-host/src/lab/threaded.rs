@@ -83,19 +83,63 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
     v[i.min(v.len() - 1)]
 }
 
+/// How the plant loop runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantLoop {
+    /// Pacing.
+    pub clock: Clock,
+    /// Ticks to run.
+    pub ticks: u64,
+    /// Lockstep only: never run more than this many ticks past the last frame from the
+    /// supervisor while it is alive (0 = do not pace on the supervisor). In lockstep the
+    /// simulation runs many times faster than real time; a supervisor thread or process that
+    /// is briefly descheduled would otherwise fall hundreds of ticks behind and trip the
+    /// card's watchdog, which counts ticks.
+    pub supervisor_window: u64,
+    /// Wall time after which a silent supervisor is taken as gone (pacing stops, so the
+    /// card's watchdog can do its job).
+    pub supervisor_grace: Duration,
+}
+
+impl PlantLoop {
+    /// Lockstep for `ticks`, pacing on the supervisor with a 100-tick window.
+    pub fn lockstep(ticks: u64) -> Self {
+        PlantLoop {
+            clock: Clock::Lockstep { timeout: Duration::from_millis(200) },
+            ticks,
+            supervisor_window: 100,
+            supervisor_grace: Duration::from_millis(1500),
+        }
+    }
+}
+
+/// Frames a supervisor sends (control word, setpoints, parameter traffic) to `node`.
+fn from_supervisor(f: &ClassicFrame) -> bool {
+    matches!(
+        kind_of(f),
+        Some(k) if k == Kind::SetpointMotion as u16
+            || k == Kind::SetpointForce as u16
+            || k == Kind::ControlWord as u16
+            || k == Kind::ParamWrite as u16
+            || k == Kind::ParamCommit as u16
+            || k == Kind::ParamRead as u16
+    )
+}
+
 /// The plant loop: `ticks` ticks (or until `stop`), recording everything it sees.
-#[allow(clippy::too_many_arguments)]
 pub fn run_plant(
     bus: &mut dyn CanBus,
     plant: &mut PlantNode,
     scenario: Option<&Scenario>,
     recorder: &mut Recorder,
-    clock: Clock,
-    ticks: u64,
+    opts: PlantLoop,
     stop: &AtomicBool,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<PlantStats> {
+    let (clock, ticks) = (opts.clock, opts.ticks);
     let mut st = PlantStats::default();
+    let mut last_sup: Option<u64> = None;
+    let mut sup_gone = false;
     let t_start = Instant::now();
     let mut lateness = Vec::new();
     while st.ticks < ticks && !stop.load(Ordering::Relaxed) {
@@ -105,6 +149,32 @@ pub fn run_plant(
             let env = sc.environment(t);
             if env != plant.plant().environment() {
                 plant.plant_mut().set_environment(env)?;
+            }
+        }
+        // Pace on the supervisor (lockstep): wait for it to catch up within its window.
+        if let (Clock::Lockstep { .. }, Some(ls), false) = (clock, last_sup, sup_gone) {
+            if opts.supervisor_window > 0 && k.saturating_sub(ls) > opts.supervisor_window {
+                let give_up = Instant::now() + opts.supervisor_grace;
+                loop {
+                    let now = Instant::now();
+                    if now >= give_up || stop.load(Ordering::Relaxed) {
+                        sup_gone = true;
+                        break;
+                    }
+                    match bus.recv_timeout(give_up - now) {
+                        Ok(Some(f)) => {
+                            account(&mut st, &f);
+                            recorder.observe(t, &f)?;
+                            if from_supervisor(&f) {
+                                last_sup = Some(k);
+                                break;
+                            }
+                        }
+                        Ok(None) => {}
+                        Err(BusError::Fault { .. }) => {}
+                        Err(e) => return Err(e.into()),
+                    }
+                }
             }
         }
         let deadline = match clock {
@@ -133,6 +203,9 @@ pub fn run_plant(
                 Ok(Some(f)) => {
                     account(&mut st, &f);
                     recorder.observe(t, &f)?;
+                    if from_supervisor(&f) {
+                        last_sup = Some(k);
+                    }
                     if plant.on_frame(&f).is_some() && matches!(clock, Clock::Lockstep { .. }) {
                         break;
                     }
