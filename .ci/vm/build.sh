@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Builds the guest programs as static x86_64 binaries and stages them for run-in-vm.sh.
 #
-#   .ci/vm/build.sh [OUT_DIR]          (default OUT_DIR: target/vm-guest)
+#   .ci/vm/build.sh [OUT_DIR [EXTRA CARGO BUILD ARGS...]]    (default OUT_DIR: target/vm-guest)
+#   e.g. .ci/vm/build.sh target/vm-guest -p hil-host --bin hil-host   (also stage the CLI)
 #
 # Output: OUT_DIR/bin/<name>   stripped static executables:
-#           every [[bin]] of jointlab-tests (vcan-up, vcan-echo, ...) and
-#           every integration test tests/tests/vcan_*.rs (as vcan_<name>, no hash)
+#           every [[bin]] of jointlab-tests (vcan-up, vcan-echo, ...),
+#           every integration test tests/tests/vcan_*.rs (as vcan_<name>, no hash), and
+#           every binary the EXTRA args build
 #         OUT_DIR/tests.list   the test executables' names, one a line
 #
 # It uses its own target dir (JOINTLAB_VM_TARGET_DIR, default target/vm-static) because
@@ -14,6 +16,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${1:-target/vm-guest}
+shift || true
 TRIPLE=x86_64-unknown-linux-gnu
 export CARGO_TARGET_DIR=${JOINTLAB_VM_TARGET_DIR:-target/vm-static}
 export RUSTFLAGS="-C target-feature=+crt-static"
@@ -21,23 +24,26 @@ export CARGO_TERM_COLOR=${CARGO_TERM_COLOR:-never}
 
 rustup target list --installed 2>/dev/null | grep -qx "$TRIPLE" || rustup target add "$TRIPLE"
 
-cargo build --release --target "$TRIPLE" -p jointlab-tests --bins
+# Debuginfo is stripped for the guest anyway; not generating it saves build time.
+export CARGO_PROFILE_RELEASE_DEBUG=${CARGO_PROFILE_RELEASE_DEBUG:-0}
+
+# One command: building the integration tests also builds the package's [[bin]]s
+# (they are what CARGO_BIN_EXE_<name> points at), so vcan-up and vcan-echo come along.
 JSON=$CARGO_TARGET_DIR/vm-tests.json
 cargo test --release --target "$TRIPLE" -p jointlab-tests --test 'vcan_*' --no-run \
   --message-format=json-render-diagnostics >"$JSON"
 
+if [ $# -gt 0 ]; then
+  cargo build --release --target "$TRIPLE" "$@" --message-format=json-render-diagnostics >>"$JSON"
+fi
+
 rm -rf "$OUT"
 mkdir -p "$OUT/bin"
-# Bins: target/<triple>/release/<name> for every bin target of jointlab-tests.
-for src in tests/src/bin/*.rs; do
-  name=$(basename "$src" .rs)
-  cp "$CARGO_TARGET_DIR/$TRIPLE/release/$name" "$OUT/bin/$name"
-done
-# Tests: the executables cargo reported for test targets named vcan_*.
+# Stage what cargo reported: test executables of vcan_* targets, and every bin executable.
 python3 - "$JSON" "$OUT" <<'PY'
 import json, shutil, sys
 src, out = sys.argv[1], sys.argv[2]
-names = []
+tests, bins = set(), set()
 for line in open(src):
     try:
         m = json.loads(line)
@@ -46,12 +52,18 @@ for line in open(src):
     if m.get("reason") != "compiler-artifact" or not m.get("executable"):
         continue
     t = m["target"]
-    if "test" in t["kind"] and t["name"].startswith("vcan_"):
+    if m["profile"]["test"]:
+        if t["name"].startswith("vcan_"):
+            shutil.copy(m["executable"], f"{out}/bin/{t['name']}")
+            tests.add(t["name"])
+    elif "bin" in t["kind"]:
         shutil.copy(m["executable"], f"{out}/bin/{t['name']}")
-        names.append(t["name"])
-if not names:
+        bins.add(t["name"])
+if not tests:
     sys.exit("vm/build: cargo reported no vcan_* test executables")
-open(f"{out}/tests.list", "w").write("".join(n + "\n" for n in sorted(set(names))))
+if "vcan-up" not in bins:
+    sys.exit("vm/build: the vcan-up helper was not built")
+open(f"{out}/tests.list", "w").write("".join(n + "\n" for n in sorted(tests)))
 PY
 for f in "$OUT"/bin/*; do
   strip --strip-debug "$f"

@@ -13,8 +13,11 @@
 #   -i IFACE             create this vcan interface (repeatable; default: vcan0)
 #   -x SCRIPT            run this host shell script (busybox sh) instead of COMMAND
 #   -t SECONDS           hard timeout for the whole boot (default 300)
-#   -m MB                guest memory (default 512);  -s N  vCPUs (default 2)
+#   -m MB                guest memory (default 512);  -s N  vCPUs (default 1: under TCG a
+#                        wake-up across vCPUs costs ~4 ms, on one vCPU a cross-process
+#                        CAN round trip is ~0.2-0.6 ms; measured, see the FIGURE lines)
 #   -l LOGFILE           also keep the full console log here
+# Env: JOINTLAB_VM_ACCEL (default tcg), JOINTLAB_VM_APPEND (extra kernel command line).
 #
 # The guest: loads the CAN modules (can-dev, vcan, can, can-raw and their dependencies,
 # resolved with modinfo from the newest /lib/modules kernel that has vcan.ko), creates the
@@ -27,7 +30,7 @@
 # (toolchain.md §3); override with JOINTLAB_VM_ACCEL=kvm where it works.
 set -euo pipefail
 
-FILES=() ; ENVS=() ; IFACES=() ; SCRIPT= ; TMO=300 ; MEM=512 ; SMP=2 ; LOG=
+FILES=() ; ENVS=() ; IFACES=() ; SCRIPT= ; TMO=300 ; MEM=512 ; SMP=1 ; LOG=
 while getopts "f:d:e:i:x:t:m:s:l:h" o; do
   case $o in
     f) FILES+=("$OPTARG") ;;
@@ -39,7 +42,7 @@ while getopts "f:d:e:i:x:t:m:s:l:h" o; do
     m) MEM=$OPTARG ;;
     s) SMP=$OPTARG ;;
     l) LOG=$OPTARG ;;
-    h) sed -n '2,29p' "$0"; exit 0 ;;
+    h) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     *) exit 2 ;;
   esac
 done
@@ -130,7 +133,7 @@ CONSOLE=$W/console.log
 set +e
 timeout "$TMO" qemu-system-x86_64 -accel "$ACCEL" -m "$MEM" -smp "$SMP" -nographic -no-reboot \
   -kernel "/boot/vmlinuz-$KVER" -initrd "$W/initrd.gz" \
-  -append "console=ttyS0 quiet loglevel=3 panic=-1 rdinit=/init" </dev/null 2>&1 \
+  -append "console=ttyS0 quiet loglevel=3 panic=-1 rdinit=/init ${JOINTLAB_VM_APPEND:-}" </dev/null 2>&1 \
   | tr -d '\r' | tee "$CONSOLE" \
   | grep -avE '^\s*$|SeaBIOS|iPXE|Press Ctrl-B|Booting from|Probing EDD|^.\[\?7l|^\[=3h|^\x1b'
 QRC=${PIPESTATUS[0]}

@@ -175,7 +175,9 @@ fn parse_timestamp(tok: &str) -> Result<Timestamp, String> {
 /// Parses the `ID#DATA` part.
 pub fn parse_frame(tok: &str) -> Result<LoggedFrame, String> {
     if tok.contains("##") {
-        return Err(format!("CAN FD frame `{tok}` (##): only classic CAN is supported"));
+        return Err(format!(
+            "CAN FD frame `{tok}` (##): only classic CAN is supported"
+        ));
     }
     let (id_s, data_s) = tok
         .split_once('#')
@@ -197,7 +199,9 @@ pub fn parse_frame(tok: &str) -> Result<LoggedFrame, String> {
             .into()
     } else if raw & CAN_ERR_FLAG != 0 {
         if raw & !(CAN_ERR_FLAG | 0x1FFF_FFFF) != 0 {
-            return Err(format!("error frame ID 0x{raw:08X} has EFF/RTR flag bits set"));
+            return Err(format!(
+                "error frame ID 0x{raw:08X} has EFF/RTR flag bits set"
+            ));
         }
         let data = parse_data(data_s)?;
         return Ok(LoggedFrame::Error(BusFault::from_raw(raw, &data)));
@@ -209,7 +213,9 @@ pub fn parse_frame(tok: &str) -> Result<LoggedFrame, String> {
     if let Some(rest) = data_s.strip_prefix(['R', 'r']) {
         let dlc = match rest {
             "" => 0,
-            d if d.len() == 1 && d.as_bytes()[0].is_ascii_digit() => usize::from(d.as_bytes()[0] - b'0'),
+            d if d.len() == 1 && d.as_bytes()[0].is_ascii_digit() => {
+                usize::from(d.as_bytes()[0] - b'0')
+            }
             d => return Err(format!("remote frame DLC `{d}` is not a digit 0..8")),
         };
         return ClassicFrame::new_rtr(id, dlc)
@@ -381,7 +387,12 @@ impl<W: Write> CandumpWriter<W> {
     }
 
     /// Writes one error frame.
-    pub fn write_fault(&mut self, time: Timestamp, iface: &str, fault: &BusFault) -> io::Result<()> {
+    pub fn write_fault(
+        &mut self,
+        time: Timestamp,
+        iface: &str,
+        fault: &BusFault,
+    ) -> io::Result<()> {
         self.write(&LogRecord {
             time,
             iface: iface.to_string(),
@@ -434,7 +445,10 @@ mod tests {
             LoggedFrame::Can(ClassicFrame::new_rtr(ExtendedId::new(0x123).unwrap(), 8).unwrap())
         );
         let r = one("(1.000000) can0 7FF#");
-        assert_eq!(r.frame, LoggedFrame::Can(ClassicFrame::std(0x7FF, &[]).unwrap()));
+        assert_eq!(
+            r.frame,
+            LoggedFrame::Can(ClassicFrame::std(0x7FF, &[]).unwrap())
+        );
         let r = one("(1.000000) vcan0 20000040#0000000000000000");
         assert_eq!(r.frame, LoggedFrame::Error(BusFault::bus_off()));
         assert!(parse_line("   \n", 3).unwrap().is_none());
@@ -444,8 +458,12 @@ mod tests {
     fn writes_can_utils_lines() {
         let mut w = CandumpWriter::new(Vec::new());
         let t = Timestamp::new(1_700_000_000, 123_456).unwrap();
-        w.write_frame(t, "vcan0", &ClassicFrame::std(0x123, &[0xDE, 0xAD, 0xBE, 0xEF]).unwrap())
-            .unwrap();
+        w.write_frame(
+            t,
+            "vcan0",
+            &ClassicFrame::std(0x123, &[0xDE, 0xAD, 0xBE, 0xEF]).unwrap(),
+        )
+        .unwrap();
         w.write_frame(
             Timestamp::new(5, 7).unwrap(),
             "can0",
@@ -502,7 +520,10 @@ mod tests {
         let frame = prop_oneof![
             (0u16..=0x7FF, proptest::collection::vec(any::<u8>(), 0..=8))
                 .prop_map(|(id, d)| LoggedFrame::Can(ClassicFrame::std(id, &d).unwrap())),
-            (0u32..=0x1FFF_FFFF, proptest::collection::vec(any::<u8>(), 0..=8))
+            (
+                0u32..=0x1FFF_FFFF,
+                proptest::collection::vec(any::<u8>(), 0..=8)
+            )
                 .prop_map(|(id, d)| LoggedFrame::Can(ClassicFrame::ext(id, &d).unwrap())),
             (any::<bool>(), 0u32..=0x1FFF_FFFF, 0usize..=8).prop_map(|(ext, id, dlc)| {
                 let id: Id = if ext {

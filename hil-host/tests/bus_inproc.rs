@@ -81,7 +81,10 @@ fn lockstep_is_deterministic_and_logged() {
     let sim = Duration::from_millis(u64::from(TICKS));
     let load = stats.load_over(1_000_000, sim);
     let worst = stats.worst_case_load_over(1_000_000, sim);
-    assert!(load > 0.15 && load <= worst && worst < 0.5, "{load} {worst}");
+    assert!(
+        load > 0.15 && load <= worst && worst < 0.5,
+        "{load} {worst}"
+    );
     let _ = std::io::Write::write_all(
         &mut std::io::stderr(),
         format!(

@@ -135,8 +135,14 @@ fn vcan_error_frames_enabled_and_decoded() {
     a.inject_fault(&passive).unwrap();
     let e = b.recv_timeout(T).unwrap_err();
     let causes = e.fault().unwrap().causes();
-    assert!(causes.contains(&FaultCause::ErrorPassive(Direction::Tx)), "{causes:?}");
-    assert!(causes.contains(&FaultCause::Counters { tx: 130, rx: 5 }), "{causes:?}");
+    assert!(
+        causes.contains(&FaultCause::ErrorPassive(Direction::Tx)),
+        "{causes:?}"
+    );
+    assert!(
+        causes.contains(&FaultCause::Counters { tx: 130, rx: 5 }),
+        "{causes:?}"
+    );
     assert!(e.requires_safe_state());
 
     a.inject_fault(&BusFault::no_ack()).unwrap();
@@ -199,8 +205,13 @@ fn vcan_candump_log_from_real_traffic() {
         assert_eq!(&r.frame, s);
     }
     assert!(recs.windows(2).all(|w| w[0].time <= w[1].time));
-    assert!(text.lines().any(|l| l.ends_with(" vcan0 123#DEADBEEF")), "{text}");
-    assert!(text.lines().any(|l| l.ends_with(" vcan0 20000040#0000000000000000")));
+    assert!(
+        text.lines().any(|l| l.ends_with(" vcan0 123#DEADBEEF")),
+        "{text}"
+    );
+    assert!(text
+        .lines()
+        .any(|l| l.ends_with(" vcan0 20000040#0000000000000000")));
     say(&format!(
         "vcan_candump_log_from_real_traffic: {} records, first line: {}",
         recs.len(),

@@ -183,7 +183,10 @@ mod tests {
         let msg: Vec<u8> = "0111111111111000000".bytes().map(|c| c - b'0').collect();
         let mut reg: Vec<u8> = msg.clone();
         reg.extend(std::iter::repeat_n(0u8, 15));
-        let g: Vec<u8> = (0..16).rev().map(|i| ((0xC599u32 >> i) & 1) as u8).collect();
+        let g: Vec<u8> = (0..16)
+            .rev()
+            .map(|i| ((0xC599u32 >> i) & 1) as u8)
+            .collect();
         for i in 0..msg.len() {
             if reg[i] == 1 {
                 for (j, gb) in g.iter().enumerate() {

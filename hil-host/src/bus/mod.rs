@@ -27,11 +27,11 @@ use std::time::Duration;
 /// Re-export, so users of this module name the same `embedded-can` version.
 pub use embedded_can;
 
+#[cfg(target_os = "linux")]
+pub use self::socketcan_bus::SocketCanBus;
 pub use fault::{BusError, BusFault, Direction, FaultCause, Severity, VCAN_HOWTO};
 pub use frame::{convert, ClassicFrame};
 pub use inproc::{BusStats, InprocBus, InprocHub};
-#[cfg(target_os = "linux")]
-pub use self::socketcan_bus::SocketCanBus;
 
 /// A node's connection to a CAN bus.
 ///
@@ -95,10 +95,12 @@ pub trait CanBusExt: CanBus {
     ) -> Result<Option<F>, BusError> {
         match self.recv_timeout(timeout)? {
             None => Ok(None),
-            Some(f) => convert(&f).map(Some).ok_or_else(|| BusError::Unrepresentable {
-                bus: self.name().to_string(),
-                reason: format!("received {f} does not fit the target frame type"),
-            }),
+            Some(f) => convert(&f)
+                .map(Some)
+                .ok_or_else(|| BusError::Unrepresentable {
+                    bus: self.name().to_string(),
+                    reason: format!("received {f} does not fit the target frame type"),
+                }),
         }
     }
 }
@@ -162,8 +164,7 @@ impl BusSpec {
         if s.len() > 15 {
             return Err(bad("interface names are at most 15 bytes (IFNAMSIZ - 1)"));
         }
-        if s
-            .bytes()
+        if s.bytes()
             .any(|b| b == b'/' || b == b':' || b.is_ascii_whitespace() || !b.is_ascii_graphic())
         {
             return Err(bad(

@@ -96,12 +96,13 @@ impl SocketCanBus {
     /// Writes an error frame (fault injection, e.g. on vcan in tests: other sockets with
     /// error frames enabled receive it exactly like a controller-generated one).
     pub fn inject_fault(&self, fault: &BusFault) -> Result<(), BusError> {
-        let frame = sys::CanErrorFrame::new_error(fault.class_bits(), fault.data()).map_err(|e| {
-            BusError::Unrepresentable {
-                bus: self.iface.clone(),
-                reason: e.to_string(),
-            }
-        })?;
+        let frame =
+            sys::CanErrorFrame::new_error(fault.class_bits(), fault.data()).map_err(|e| {
+                BusError::Unrepresentable {
+                    bus: self.iface.clone(),
+                    reason: e.to_string(),
+                }
+            })?;
         self.sock
             .write_frame(&CanFrame::Error(frame))
             .map_err(|e| self.io("write error frame", e))

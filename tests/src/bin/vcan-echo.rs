@@ -33,8 +33,7 @@ fn run(spec: &str, count: u64) -> Result<u64, String> {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (Some(spec), Some(count)) = (args.first(), args.get(1).and_then(|c| c.parse().ok()))
-    else {
+    let (Some(spec), Some(count)) = (args.first(), args.get(1).and_then(|c| c.parse().ok())) else {
         eprintln!("usage: vcan-echo BUS COUNT   (e.g. vcan-echo vcan0 1000)");
         std::process::exit(2);
     };
