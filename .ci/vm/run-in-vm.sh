@@ -9,6 +9,8 @@
 #   -f HOST_PATH[:NAME]  copy a static executable (or any file) to /bin/NAME in the guest;
 #                        repeat for several binaries (card, plant, supervisor, tests, ...)
 #   -d HOST_DIR          copy every file of HOST_DIR to /bin (e.g. the output of build.sh)
+#   -D HOST_BIN          copy a dynamically linked host program to /bin together with the
+#                        shared libraries `ldd` lists (e.g. -D /usr/bin/candump)
 #   -e NAME=VALUE        export an environment variable to the command
 #   -i IFACE             create this vcan interface (repeatable; default: vcan0)
 #   -x SCRIPT            run this host shell script (busybox sh) instead of COMMAND
@@ -30,11 +32,12 @@
 # (toolchain.md §3); override with JOINTLAB_VM_ACCEL=kvm where it works.
 set -euo pipefail
 
-FILES=() ; ENVS=() ; IFACES=() ; SCRIPT= ; TMO=300 ; MEM=512 ; SMP=1 ; LOG=
-while getopts "f:d:e:i:x:t:m:s:l:h" o; do
+FILES=() ; DYN=() ; ENVS=() ; IFACES=() ; SCRIPT= ; TMO=300 ; MEM=512 ; SMP=1 ; LOG=
+while getopts "f:d:D:e:i:x:t:m:s:l:h" o; do
   case $o in
     f) FILES+=("$OPTARG") ;;
     d) for p in "$OPTARG"/*; do [ -f "$p" ] && FILES+=("$p"); done ;;
+    D) DYN+=("$OPTARG") ;;
     e) ENVS+=("$OPTARG") ;;
     i) IFACES+=("$OPTARG") ;;
     x) SCRIPT=$OPTARG ;;
@@ -101,6 +104,14 @@ for spec in "${FILES[@]}"; do
   [ "$name" = "$spec" ] && name=$(basename "$src")
   [ -f "$src" ] || { echo "run-in-vm: no such file: $src" >&2; exit 2; }
   cp "$src" "$R/bin/$name"; chmod +x "$R/bin/$name"
+done
+for b in "${DYN[@]}"; do
+  [ -f "$b" ] || { echo "run-in-vm: no such program: $b" >&2; exit 2; }
+  cp "$b" "$R/bin/"
+  for lib in $(ldd "$b" | grep -o '/[^ ]*'); do
+    mkdir -p "$R$(dirname "$lib")"
+    cp -L "$lib" "$R$lib"
+  done
 done
 [ -x "$R/bin/vcan-up" ] || { echo "run-in-vm: the vcan-up helper must be among the copied files (.ci/vm/build.sh stages it)" >&2; exit 2; }
 if [ -n "$SCRIPT" ]; then cp "$SCRIPT" "$R/cmd.sh"; else printf '%s\n' "$*" >"$R/cmd.sh"; fi

@@ -354,3 +354,161 @@ fn vcan_round_trip_rate() {
         ping_pong(Box::new(a), Box::new(b), N),
     );
 }
+
+/// `None` (announced) when the can-utils program is not installed, unless
+/// `JOINTLAB_REQUIRE_CANUTILS=1` (the VM stage copies candump/canplayer into the guest).
+fn can_utils(prog: &str, test: &str) -> Option<()> {
+    let found = std::env::var_os("PATH")
+        .map(|p| std::env::split_paths(&p).any(|d| d.join(prog).is_file()))
+        .unwrap_or(false);
+    if found {
+        return Some(());
+    }
+    if std::env::var("JOINTLAB_REQUIRE_CANUTILS").as_deref() == Ok("1") {
+        panic!("{test}: JOINTLAB_REQUIRE_CANUTILS=1 but `{prog}` is not on PATH");
+    }
+    say(&format!(
+        "SKIPPED: {prog} (can-utils) not installed [{test}]"
+    ));
+    None
+}
+
+fn interop_frames() -> Vec<LoggedFrame> {
+    let mut v: Vec<LoggedFrame> = frames().into_iter().map(LoggedFrame::Can).collect();
+    v.push(LoggedFrame::Error(BusFault::controller(
+        ctrl::RX_WARNING,
+        0,
+        97,
+    )));
+    v.push(LoggedFrame::Error(BusFault::bus_off()));
+    v
+}
+
+/// can-utils `candump -L` captures our traffic; every line parses with our reader into
+/// exactly the frames we sent (data, remote with DLC, 29-bit, error frames).
+#[test]
+fn vcan_candump_tool_output_parses() {
+    let Some(_g) = vcan("vcan_candump_tool_output_parses") else {
+        return;
+    };
+    if can_utils("candump", "vcan_candump_tool_output_parses").is_none() {
+        return;
+    }
+    // `IFACE,#MASK` sets candump's error mask (its `-e` conflicts with `-L` in can-utils
+    // 2020.11: "Log file format selected: Please disable ASCII/BINARY/SWAP options!").
+    let mut child = Command::new("candump")
+        .args(["-L", &format!("{IFACE},#1FFFFFFF")])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("spawn candump");
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    let out = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut a = SocketCanBus::open(IFACE).unwrap();
+    // Wait until candump is listening: send a sync frame until it shows up.
+    let sync = ClassicFrame::std(0x7F0, &[0x55]).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    'wait: loop {
+        assert!(
+            Instant::now() < deadline,
+            "candump never printed the sync frame"
+        );
+        if let Some(st) = child.try_wait().unwrap() {
+            panic!("candump exited early: {st}");
+        }
+        a.send(&sync).unwrap();
+        while let Ok(l) = rx.recv_timeout(Duration::from_millis(100)) {
+            if l.ends_with(" vcan0 7F0#55") {
+                break 'wait;
+            }
+        }
+    }
+    let sent = interop_frames();
+    for f in &sent {
+        match f {
+            LoggedFrame::Can(c) => a.send(c).unwrap(),
+            LoggedFrame::Error(e) => a.inject_fault(e).unwrap(),
+        }
+    }
+    let end = ClassicFrame::std(0x7F1, &[0xAA]).unwrap();
+    a.send(&end).unwrap();
+    let mut lines = Vec::new();
+    loop {
+        let l = rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("candump output");
+        if l.ends_with(" vcan0 7F1#AA") {
+            break;
+        }
+        if !l.ends_with(" vcan0 7F0#55") {
+            lines.push(l);
+        }
+    }
+    child.kill().ok();
+    child.wait().ok();
+    let got: Vec<LoggedFrame> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            hil_host::candump::parse_line(l, i + 1)
+                .unwrap()
+                .unwrap()
+                .frame
+        })
+        .collect();
+    assert_eq!(got, sent, "candump lines:\n{}", lines.join("\n"));
+    say(&format!(
+        "vcan_candump_tool_output_parses: {} candump -L lines parsed, e.g. `{}` and `{}`",
+        lines.len(),
+        lines.iter().find(|l| l.contains("#R")).map_or("", |s| s),
+        lines.last().map_or("", |s| s)
+    ));
+}
+
+/// can-utils `canplayer` replays a log written by our writer onto vcan0; we receive the
+/// same frames.
+#[test]
+fn vcan_canplayer_replays_our_log() {
+    let Some(_g) = vcan("vcan_canplayer_replays_our_log") else {
+        return;
+    };
+    if can_utils("canplayer", "vcan_canplayer_replays_our_log").is_none() {
+        return;
+    }
+    let path = std::env::temp_dir().join(format!("jointlab-play-{}.log", std::process::id()));
+    let sent: Vec<ClassicFrame> = frames();
+    let mut w = CandumpWriter::new(std::fs::File::create(&path).unwrap());
+    for (i, f) in sent.iter().enumerate() {
+        let t = Timestamp::from_duration(Duration::from_millis(1_000 + i as u64));
+        w.write_frame(t, IFACE, f).unwrap();
+    }
+    w.flush().unwrap();
+    drop(w);
+    let mut b = SocketCanBus::open(IFACE).unwrap();
+    let status = Command::new("canplayer")
+        .arg("-I")
+        .arg(&path)
+        .status()
+        .expect("run canplayer");
+    std::fs::remove_file(&path).ok();
+    assert!(status.success(), "canplayer: {status}");
+    let mut got = Vec::new();
+    while let Some(f) = b.recv_timeout(Duration::from_secs(2)).unwrap() {
+        got.push(f);
+        if got.len() == sent.len() {
+            break;
+        }
+    }
+    assert_eq!(got, sent);
+    say(&format!(
+        "vcan_canplayer_replays_our_log: canplayer replayed {} frames",
+        got.len()
+    ));
+}
