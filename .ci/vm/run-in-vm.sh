@@ -146,11 +146,12 @@ timeout "$TMO" qemu-system-x86_64 -accel "$ACCEL" -m "$MEM" -smp "$SMP" -nograph
   -kernel "/boot/vmlinuz-$KVER" -initrd "$W/initrd.gz" \
   -append "console=ttyS0 quiet loglevel=3 panic=-1 rdinit=/init ${JOINTLAB_VM_APPEND:-}" </dev/null 2>&1 \
   | tr -d '\r' | tee "$CONSOLE" \
-  | grep -avE '^\s*$|SeaBIOS|iPXE|Press Ctrl-B|Booting from|Probing EDD|^.\[\?7l|^\[=3h|^\x1b'
+  | sed -E 's/\x1b(\[[0-9;?=]*[a-zA-Z]|c)//g' \
+  | grep -avE '^\s*$|SeaBIOS|iPXE|Press Ctrl-B|Booting from|Probing EDD'
 QRC=${PIPESTATUS[0]}
 set -e
 [ -n "$LOG" ] && cp "$CONSOLE" "$LOG"
-RC=$(grep -a '^GUEST_RC=' "$CONSOLE" | tail -1 | cut -d= -f2 | tr -dc '0-9')
+RC=$(grep -a '^GUEST_RC=' "$CONSOLE" | tail -1 | cut -d= -f2 | tr -dc '0-9' || true)
 if [ -z "$RC" ]; then
   if [ "$QRC" = 124 ]; then
     echo "run-in-vm: FAILED: guest timed out after ${TMO}s (no GUEST_RC line)" >&2
