@@ -4,6 +4,7 @@
 #   linux-image-amd64 -> /boot/vmlinuz-<kver> and /lib/modules/<kver> with can-dev/vcan/can/can-raw
 #   busybox-static   -> /bin/busybox for the guest's initramfs
 #   cpio             -> packs the initramfs
+#   can-utils        -> candump/canplayer, run in the guest to check the candump -L format
 # --no-install-recommends matters: without it apt pulls ~165 GUI/audio packages and has replaced
 # a preinstalled qemu-utils backport before (toolchain.md §0).
 set -euo pipefail
@@ -18,8 +19,9 @@ have_kernel() {
   return 1
 }
 
-if command -v qemu-system-x86_64 >/dev/null && [ -x /bin/busybox ] && command -v cpio >/dev/null && have_kernel; then
-  echo "vm/install: qemu-system-x86_64, busybox, cpio and a kernel with vcan are present"
+if command -v qemu-system-x86_64 >/dev/null && [ -x /bin/busybox ] && command -v cpio >/dev/null \
+  && [ -x /usr/bin/candump ] && [ -x /usr/bin/canplayer ] && have_kernel; then
+  echo "vm/install: qemu-system-x86_64, busybox, cpio, can-utils and a kernel with vcan are present"
   exit 0
 fi
 
@@ -29,5 +31,5 @@ export DEBIAN_FRONTEND=noninteractive
 # Another job may hold the dpkg lock (shared machines): wait for it instead of failing.
 $SUDO apt-get -o DPkg::Lock::Timeout=600 update
 $SUDO apt-get -o DPkg::Lock::Timeout=600 install -y --no-install-recommends \
-  qemu-system-x86 linux-image-amd64 busybox-static cpio
+  qemu-system-x86 linux-image-amd64 busybox-static cpio can-utils
 have_kernel || { echo "vm/install: no /boot/vmlinuz-* with a matching vcan.ko after install" >&2; exit 1; }

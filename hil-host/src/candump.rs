@@ -21,6 +21,12 @@
 //! * Rejected with the line number: CAN FD (`##`), DLC codes above 8 (`_X` suffix), bad
 //!   hex, IDs out of range, missing fields. An optional trailing `R`/`T` (direction, written
 //!   by newer candump with `-x`) is accepted and ignored. Blank lines are skipped.
+//!
+//! Checked against can-utils 2020.11 in the `.ci/vm` guest: `candump -L` output parses into
+//! the frames sent, and `canplayer -I` replays a log written here.
+//!
+//! [`CandumpWriter`]/[`CandumpReader`]/[`read_log`] do the I/O; [`CandumpTap`] wraps any
+//! [`CanBus`] and records what that node sends and receives.
 
 use std::fmt;
 use std::io::{self, BufRead, Write};
@@ -30,7 +36,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use embedded_can::{ExtendedId, Id, StandardId};
 
 use crate::bus::fault::CAN_ERR_FLAG;
-use crate::bus::{BusFault, ClassicFrame};
+use crate::bus::{BusError, BusFault, CanBus, ClassicFrame};
 
 /// A log timestamp: seconds and microseconds (since the Unix epoch for live captures, or
 /// since the start of a simulation; canplayer only uses differences).
@@ -411,6 +417,101 @@ impl<W: Write> CandumpWriter<W> {
     }
 }
 
+/// Where a [`CandumpTap`] gets its timestamps.
+pub type Clock = Box<dyn FnMut() -> Timestamp + Send>;
+
+/// A [`CanBus`] wrapper that logs every frame it sends and receives (and every error frame
+/// it receives) as candump `-L` lines: a node-local recorder.
+///
+/// The default clock is wall time ([`Timestamp::now`]); pass a simulated clock with
+/// [`CandumpTap::with_clock`] for reproducible logs. Write errors do not disturb the bus
+/// traffic; the first one is kept and returned by [`CandumpTap::finish`].
+pub struct CandumpTap<B, W: Write> {
+    inner: B,
+    writer: CandumpWriter<W>,
+    iface: String,
+    clock: Clock,
+    write_error: Option<io::Error>,
+}
+
+impl<B, W: Write> fmt::Debug for CandumpTap<B, W> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("CandumpTap")
+            .field("iface", &self.iface)
+            .field("write_error", &self.write_error)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<B: CanBus, W: Write + Send> CandumpTap<B, W> {
+    /// Logs under the interface name `iface` with wall-clock timestamps.
+    pub fn new(inner: B, out: W, iface: &str) -> Self {
+        Self::with_clock(inner, out, iface, Box::new(Timestamp::now))
+    }
+
+    /// Logs with timestamps from `clock` (e.g. simulated time).
+    pub fn with_clock(inner: B, out: W, iface: &str, clock: Clock) -> Self {
+        Self {
+            inner,
+            writer: CandumpWriter::new(out),
+            iface: iface.to_string(),
+            clock,
+            write_error: None,
+        }
+    }
+
+    fn log(&mut self, frame: LoggedFrame) {
+        if self.write_error.is_some() {
+            return;
+        }
+        let rec = LogRecord {
+            time: (self.clock)(),
+            iface: self.iface.clone(),
+            frame,
+        };
+        if let Err(e) = self.writer.write(&rec) {
+            self.write_error = Some(e);
+        }
+    }
+
+    /// Flushes and returns the bus and the writer, or the first write error.
+    pub fn finish(mut self) -> io::Result<(B, W)> {
+        if let Some(e) = self.write_error.take() {
+            return Err(e);
+        }
+        self.writer.flush()?;
+        Ok((self.inner, self.writer.into_inner()))
+    }
+}
+
+impl<B: CanBus, W: Write + Send> CanBus for CandumpTap<B, W> {
+    fn send(&mut self, frame: &ClassicFrame) -> Result<(), BusError> {
+        self.inner.send(frame)?;
+        self.log(LoggedFrame::Can(*frame));
+        Ok(())
+    }
+
+    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<ClassicFrame>, BusError> {
+        match self.inner.recv_timeout(timeout) {
+            Ok(Some(f)) => {
+                self.log(LoggedFrame::Can(f));
+                Ok(Some(f))
+            }
+            Err(e) => {
+                if let Some(fault) = e.fault() {
+                    self.log(LoggedFrame::Error(*fault));
+                }
+                Err(e)
+            }
+            other => other,
+        }
+    }
+
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -570,5 +671,32 @@ mod tests {
                 prop_assert!(e.to_string().contains("line 42"));
             }
         }
+    }
+
+    #[test]
+    fn tap_logs_both_directions_with_a_sim_clock() {
+        use crate::bus::InprocHub;
+        let hub = InprocHub::new("tap");
+        let mut t = 0u64;
+        let clock: Clock = Box::new(move || {
+            t += 1000;
+            Timestamp::from_duration(Duration::from_micros(t))
+        });
+        let mut a = CandumpTap::with_clock(hub.attach("a"), Vec::new(), "sim0", clock);
+        let mut b = hub.attach("b");
+        a.send(&ClassicFrame::std(0x10, &[1]).unwrap()).unwrap();
+        let got = b.recv_timeout(Duration::from_secs(1)).unwrap().unwrap();
+        b.send(&ClassicFrame::std(0x11, got.data()).unwrap())
+            .unwrap();
+        assert!(a.recv_timeout(Duration::from_secs(1)).unwrap().is_some());
+        hub.inject_fault(BusFault::bus_off());
+        assert!(a.recv_timeout(Duration::from_secs(1)).is_err());
+        let (_, out) = a.finish().unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "(0000000000.001000) sim0 010#01\n\
+             (0000000000.002000) sim0 011#01\n\
+             (0000000000.003000) sim0 20000040#0000000000000000\n"
+        );
     }
 }

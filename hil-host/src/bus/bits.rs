@@ -47,73 +47,105 @@ pub fn crc15_bytes(bytes: &[u8]) -> u16 {
     )
 }
 
-/// The unstuffed bits from SOF through the last CRC bit (dominant = `false`).
+/// Calls `out` with every bit from SOF through the end of the data field (dominant =
+/// `false`), i.e. the bits the CRC covers.
 ///
-/// Standard: SOF, ID[10:0], RTR, IDE=0, r0=0, DLC[3:0], data, CRC[14:0] (34 + 8n bits).
-/// Extended: SOF, ID[28:18], SRR=1, IDE=1, ID[17:0], RTR, r1=0, r0=0, DLC, data, CRC
-/// (54 + 8n bits). A remote frame sends its DLC but no data.
-pub fn frame_bits_unstuffed(frame: &ClassicFrame) -> Vec<bool> {
-    let mut bits = Vec::with_capacity(54 + 64 + 15);
-    fn push(v: u32, n: u32, bits: &mut Vec<bool>) {
+/// Standard: SOF, ID[10:0], RTR, IDE=0, r0=0, DLC[3:0], data (19 + 8n bits).
+/// Extended: SOF, ID[28:18], SRR=1, IDE=1, ID[17:0], RTR, r1=0, r0=0, DLC, data
+/// (39 + 8n bits). A remote frame sends its DLC but no data.
+fn for_each_crc_covered_bit(frame: &ClassicFrame, mut out: impl FnMut(bool)) {
+    let mut push = |v: u32, n: u32| {
         for i in (0..n).rev() {
-            bits.push((v >> i) & 1 == 1);
+            out((v >> i) & 1 == 1);
         }
-    }
-    push(0, 1, &mut bits); // SOF
+    };
+    push(0, 1); // SOF
     match frame.id() {
         Id::Standard(s) => {
-            push(u32::from(s.as_raw()), 11, &mut bits);
-            push(u32::from(frame.is_remote()), 1, &mut bits); // RTR
-            push(0, 1, &mut bits); // IDE
-            push(0, 1, &mut bits); // r0
+            push(u32::from(s.as_raw()), 11);
+            push(u32::from(frame.is_remote()), 1); // RTR
+            push(0, 1); // IDE
+            push(0, 1); // r0
         }
         Id::Extended(e) => {
             let id = e.as_raw();
-            push(id >> 18, 11, &mut bits); // base ID
-            push(1, 1, &mut bits); // SRR (recessive)
-            push(1, 1, &mut bits); // IDE (recessive)
-            push(id & 0x3_FFFF, 18, &mut bits); // ID extension
-            push(u32::from(frame.is_remote()), 1, &mut bits); // RTR
-            push(0, 2, &mut bits); // r1, r0
+            push(id >> 18, 11); // base ID
+            push(1, 1); // SRR (recessive)
+            push(1, 1); // IDE (recessive)
+            push(id & 0x3_FFFF, 18); // ID extension
+            push(u32::from(frame.is_remote()), 1); // RTR
+            push(0, 2); // r1, r0
         }
     }
-    push(frame.dlc() as u32, 4, &mut bits);
+    push(frame.dlc() as u32, 4);
     for b in frame.data() {
-        push(u32::from(*b), 8, &mut bits);
+        push(u32::from(*b), 8);
     }
+}
+
+/// The unstuffed bits from SOF through the last CRC bit (34 + 8n bits for an 11-bit ID,
+/// 54 + 8n for a 29-bit ID).
+pub fn frame_bits_unstuffed(frame: &ClassicFrame) -> Vec<bool> {
+    let mut bits = Vec::with_capacity(54 + 64 + 15);
+    for_each_crc_covered_bit(frame, |b| bits.push(b));
     let crc = crc15_bits(bits.iter().copied());
-    push(u32::from(crc), 15, &mut bits);
+    bits.extend((0..15).rev().map(|i| (crc >> i) & 1 == 1));
     bits
+}
+
+/// Counts stuff bits over a bit stream, one bit at a time (the transmitter's rule).
+#[derive(Default)]
+struct StuffCounter {
+    last: Option<bool>,
+    run: u32,
+    stuffed: u32,
+}
+
+impl StuffCounter {
+    fn push(&mut self, b: bool) {
+        if Some(b) == self.last {
+            self.run += 1;
+        } else {
+            self.last = Some(b);
+            self.run = 1;
+        }
+        if self.run == 5 {
+            self.stuffed += 1;
+            self.last = Some(!b);
+            self.run = 1;
+        }
+    }
 }
 
 /// Number of stuff bits a transmitter inserts into `bits`: after five consecutive equal
 /// bits it inserts one complementary bit, which itself starts the next run. A stuff bit
 /// after the last bit (the last CRC bit) is counted too, as on the wire.
 pub fn stuff_bit_count(bits: &[bool]) -> u32 {
-    let mut count = 0;
-    let mut last: Option<bool> = None;
-    let mut run = 0;
-    for &b in bits {
-        if Some(b) == last {
-            run += 1;
-        } else {
-            last = Some(b);
-            run = 1;
-        }
-        if run == 5 {
-            count += 1;
-            last = Some(!b);
-            run = 1;
-        }
-    }
-    count
+    let mut c = StuffCounter::default();
+    bits.iter().for_each(|&b| c.push(b));
+    c.stuffed
 }
 
 /// Exact number of bit times the frame occupies on the bus, including stuff bits and the
-/// 3-bit inter-frame space.
+/// 3-bit inter-frame space. Streams the bits once (CRC and stuffing together), no
+/// allocation.
 pub fn exact_bits(frame: &ClassicFrame) -> u32 {
-    let bits = frame_bits_unstuffed(frame);
-    bits.len() as u32 + stuff_bit_count(&bits) + TAIL_BITS
+    let mut crc: u16 = 0;
+    let mut n = 0u32;
+    let mut stuff = StuffCounter::default();
+    for_each_crc_covered_bit(frame, |bit| {
+        n += 1;
+        stuff.push(bit);
+        let next = bit ^ ((crc >> 14) & 1 == 1);
+        crc = (crc << 1) & 0x7FFF;
+        if next {
+            crc ^= CRC15_POLY;
+        }
+    });
+    for i in (0..15).rev() {
+        stuff.push((crc >> i) & 1 == 1);
+    }
+    n + 15 + stuff.stuffed + TAIL_BITS
 }
 
 /// Worst-case number of bit times (maximum stuffing) for a frame with `data_len` data bytes,
@@ -283,6 +315,13 @@ mod tests {
                 prop_assert!(run <= 5);
             }
             prop_assert_eq!(s.len() as u32 + TAIL_BITS, exact_bits(&f));
+        }
+
+        /// The streaming count equals the count over the materialised bit vector.
+        #[test]
+        fn streaming_equals_materialised(f in any_frame()) {
+            let bits = frame_bits_unstuffed(&f);
+            prop_assert_eq!(exact_bits(&f), bits.len() as u32 + stuff_bit_count(&bits) + TAIL_BITS);
         }
 
         /// Appending the transmitted CRC to the message leaves a zero remainder.

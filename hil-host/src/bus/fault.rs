@@ -367,6 +367,14 @@ impl fmt::Debug for BusFault {
 pub const VCAN_HOWTO: &str =
     "sudo modprobe vcan && sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0";
 
+fn rig_hint(iface: &str) -> String {
+    if iface.starts_with("vcan") {
+        String::new()
+    } else {
+        format!(" (on a rig with a real controller: sudo ip link set {iface} up type can bitrate 1000000)")
+    }
+}
+
 /// Errors of every [`CanBus`](super::CanBus).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -374,8 +382,8 @@ pub enum BusError {
     /// The network interface does not exist (ENODEV, os error 19).
     #[error(
         "CAN interface `{iface}` does not exist (ENODEV, os error 19). Create a virtual CAN \
-         interface with: {VCAN_HOWTO}   (on a rig, bring up the real one: sudo ip link set \
-         {iface} up type can bitrate 1000000). Or use the in-process bus: --bus inproc"
+         interface with: {VCAN_HOWTO}{}. Or use the in-process bus: --bus inproc",
+        rig_hint(iface)
     )]
     NoSuchInterface {
         /// The interface name that was asked for.

@@ -24,6 +24,9 @@ pub mod socketcan_bus;
 
 use std::time::Duration;
 
+/// Re-export, so users of this module name the same `embedded-can` version.
+pub use embedded_can;
+
 #[cfg(target_os = "linux")]
 pub use self::socketcan_bus::SocketCanBus;
 pub use fault::{BusError, BusFault, Direction, FaultCause, Severity, VCAN_HOWTO};

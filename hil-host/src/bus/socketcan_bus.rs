@@ -80,6 +80,19 @@ impl SocketCanBus {
             .map_err(|e| self.io("set CAN_RAW_RECV_OWN_MSGS", e))
     }
 
+    /// Kernel-side receive filters: a frame is delivered if `frame_id & mask == id & mask`
+    /// for any `(id, mask)` pair (SocketCAN `CAN_RAW_FILTER`; IDs are raw `can_id` values,
+    /// so add `CAN_EFF_FLAG` 0x80000000 to match 29-bit IDs). Error frames are not affected.
+    pub fn set_filters(&self, filters: &[(u32, u32)]) -> Result<(), BusError> {
+        let f: Vec<sys::CanFilter> = filters
+            .iter()
+            .map(|&(id, mask)| sys::CanFilter::new(id, mask))
+            .collect();
+        self.sock
+            .set_filters(&f)
+            .map_err(|e| self.io("set CAN_RAW_FILTER", e))
+    }
+
     /// Writes an error frame (fault injection, e.g. on vcan in tests: other sockets with
     /// error frames enabled receive it exactly like a controller-generated one).
     pub fn inject_fault(&self, fault: &BusFault) -> Result<(), BusError> {
