@@ -29,12 +29,13 @@ export CARGO_PROFILE_RELEASE_DEBUG=${CARGO_PROFILE_RELEASE_DEBUG:-0}
 
 # One command: building the integration tests also builds the package's [[bin]]s
 # (they are what CARGO_BIN_EXE_<name> points at), so vcan-up and vcan-echo come along.
+mkdir -p "$CARGO_TARGET_DIR"
 JSON=$CARGO_TARGET_DIR/vm-tests.json
-cargo test --release --target "$TRIPLE" -p jointlab-tests --test 'vcan_*' --no-run \
+cargo test --profile vm --target "$TRIPLE" -p jointlab-tests --test 'vcan_*' --no-run \
   --message-format=json-render-diagnostics >"$JSON"
 
 if [ $# -gt 0 ]; then
-  cargo build --release --target "$TRIPLE" "$@" --message-format=json-render-diagnostics >>"$JSON"
+  cargo build --profile vm --target "$TRIPLE" "$@" --message-format=json-render-diagnostics >>"$JSON"
 fi
 
 rm -rf "$OUT"

@@ -23,7 +23,7 @@ step "install (only if missing)"
 
 step "build static guest binaries"
 OUT=${JOINTLAB_VM_OUT:-target/vm-guest}
-.ci/vm/build.sh "$OUT"
+.ci/vm/build.sh "$OUT" -p hil-host --bin hil-host
 
 step "boot the guest and run the vcan tests"
 GUEST_SCRIPT=$(mktemp)
