@@ -6,5 +6,5 @@
 
 pub mod bus;
 pub mod candump;
-pub mod lab;
 pub mod cli;
+pub mod lab;

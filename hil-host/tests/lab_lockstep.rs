@@ -49,7 +49,11 @@ fn position_step_tracks_to_within_the_friction_band() {
     );
     assert!(s.get("overshoot").unwrap() < 20.0);
     let last = l.recorder.rows.last().unwrap();
-    assert!(last.output_pos_rad > 0.5 * s.get("step size").unwrap(), "the joint moved: {}", last.output_pos_rad);
+    assert!(
+        last.output_pos_rad > 0.5 * s.get("step size").unwrap(),
+        "the joint moved: {}",
+        last.output_pos_rad
+    );
     assert!(s.get("peak torque command").unwrap() <= 2.0 + 1e-9);
 }
 

@@ -81,18 +81,41 @@ fn vcan_hil_processes_watchdog_and_recording() {
     // The supervisor "crashes" (exits silently) after 1500 ticks.
     let mut sup = Kill(spawn(
         &bin,
-        &[&["supervise"][..], &common, &preset, &["--seconds", "5", "--die-after", "1500", "--quiet"]].concat(),
+        &[
+            &["supervise"][..],
+            &common,
+            &preset,
+            &["--seconds", "5", "--die-after", "1500", "--quiet"],
+        ]
+        .concat(),
     ));
     std::thread::sleep(Duration::from_millis(300));
     let t0 = Instant::now();
     let plant = Command::new(&bin)
-        .args([&["plant"][..], &common, &preset, &["--seconds", "2.5", "--quiet"]].concat())
-        .args(["--csv".as_ref(), csv.as_os_str(), "--candump".as_ref(), log.as_os_str()])
+        .args(
+            [
+                &["plant"][..],
+                &common,
+                &preset,
+                &["--seconds", "2.5", "--quiet"],
+            ]
+            .concat(),
+        )
+        .args([
+            "--csv".as_ref(),
+            csv.as_os_str(),
+            "--candump".as_ref(),
+            log.as_os_str(),
+        ])
         .output()
         .expect("run the plant");
     let wall = t0.elapsed();
     let out = String::from_utf8_lossy(&plant.stdout);
-    eprintln!("plant ({:.1} s wall):\n{out}{}", wall.as_secs_f64(), String::from_utf8_lossy(&plant.stderr));
+    eprintln!(
+        "plant ({:.1} s wall):\n{out}{}",
+        wall.as_secs_f64(),
+        String::from_utf8_lossy(&plant.stderr)
+    );
     assert!(plant.status.success(), "plant failed");
     let sup_status = sup.0.wait().expect("supervisor exit");
     assert!(sup_status.success(), "supervisor exited with {sup_status}");
@@ -100,7 +123,12 @@ fn vcan_hil_processes_watchdog_and_recording() {
     // --- the recording: every tick, in order ---
     let mut rd = csv::Reader::from_path(&csv).unwrap();
     let headers = rd.headers().unwrap().clone();
-    let col = |name: &str| headers.iter().position(|h| h == name).unwrap_or_else(|| panic!("column {name}"));
+    let col = |name: &str| {
+        headers
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("column {name}"))
+    };
     let (c_t, c_seq, c_out, c_tau, c_state, c_fault) = (
         col("time_s"),
         col("seq"),
@@ -115,17 +143,30 @@ fn vcan_hil_processes_watchdog_and_recording() {
         let seq: u32 = r[c_seq].parse().unwrap();
         assert_eq!(seq, ((k + 1) % 256) as u32, "row {k}: sequence");
         let t: f64 = r[c_t].parse().unwrap();
-        assert!((t - (k + 1) as f64 * 1e-3).abs() < 1e-6, "row {k}: time {t}");
+        assert!(
+            (t - (k + 1) as f64 * 1e-3).abs() < 1e-6,
+            "row {k}: time {t}"
+        );
     }
     let f = |r: &csv::StringRecord, c: usize| -> f64 { r[c].parse().unwrap() };
     // the step was tracked while the supervisor was alive
     let at = |t: f64| &rows[(t * 1000.0) as usize - 1];
     assert_eq!(&at(1.4)[c_state], "Enabled");
-    assert!(f(at(1.4), c_out) > 0.05, "output moved toward the 0.1 rad step: {}", f(at(1.4), c_out));
+    assert!(
+        f(at(1.4), c_out) > 0.05,
+        "output moved toward the 0.1 rad step: {}",
+        f(at(1.4), c_out)
+    );
     // the watchdog reacted: supervisor silent from tick ~1500, timeout 200 ms
-    let first_fault = rows.iter().position(|r| &r[c_fault] == "1").expect("the card reported a fault");
+    let first_fault = rows
+        .iter()
+        .position(|r| &r[c_fault] == "1")
+        .expect("the card reported a fault");
     let t_fault = (first_fault + 1) as f64 * 1e-3;
-    assert!((1.69..=1.72).contains(&t_fault), "watchdog reaction at {t_fault} s");
+    assert!(
+        (1.69..=1.72).contains(&t_fault),
+        "watchdog reaction at {t_fault} s"
+    );
     let last = rows.last().unwrap();
     assert_eq!(f(last, c_tau), 0.0, "joint released after the reaction");
 
@@ -143,6 +184,10 @@ fn vcan_hil_processes_watchdog_and_recording() {
         })
         .collect();
     assert_eq!(faults, vec![FaultCode::SupervisorWatchdog]);
-    eprintln!("vcan HIL over processes: {} ticks in {:.2} s wall, watchdog at {t_fault:.3} s", rows.len(), wall.as_secs_f64());
+    eprintln!(
+        "vcan HIL over processes: {} ticks in {:.2} s wall, watchdog at {t_fault:.3} s",
+        rows.len(),
+        wall.as_secs_f64()
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -87,7 +87,10 @@ impl PlantChoice {
     }
     fn label(&self) -> String {
         match &self.model {
-            Some(p) => p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            Some(p) => p
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             None => self.preset.clone(),
         }
     }
@@ -148,20 +151,37 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
         .map(|k| vec![k])
         .ok_or_else(|| {
             let names: Vec<_> = ScenarioKind::ALL.iter().map(|k| k.name()).collect();
-            anyhow!("unknown scenario `{spec}`; one of: {}, all", names.join(", "))
+            anyhow!(
+                "unknown scenario `{spec}`; one of: {}, all",
+                names.join(", ")
+            )
         })
 }
 
 /// Runs the zero-setup demo.
 pub fn demo(a: DemoArgs) -> Result<()> {
     let model = a.plant.load()?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
     for kind in scenarios(&a.scenario)? {
         let sc = Scenario::new(kind, &model)?;
-        let mut lab = Lab::new(&model, sc, &LabOptions { seed: a.seed, ..LabOptions::default() })?;
-        let stem = a.out.join(format!("demo-{}-{}", kind.name(), a.plant.label()));
-        let (csv, log, png) = (stem.with_extension("csv"), stem.with_extension("log"), stem.with_extension("png"));
+        let mut lab = Lab::new(
+            &model,
+            sc,
+            &LabOptions {
+                seed: a.seed,
+                ..LabOptions::default()
+            },
+        )?;
+        let stem = a
+            .out
+            .join(format!("demo-{}-{}", kind.name(), a.plant.label()));
+        let (csv, log, png) = (
+            stem.with_extension("csv"),
+            stem.with_extension("log"),
+            stem.with_extension("png"),
+        );
         lab.recorder.write_csv(&csv)?;
         lab.recorder.write_candump(&log, "inproc")?;
         let pb = bar(lab.scenario.ticks(), a.quiet);
@@ -184,8 +204,18 @@ pub fn demo(a: DemoArgs) -> Result<()> {
                 println!("  supervisor: {e:?}");
             }
         }
-        plot_run(&png, &format!("{} — {}", kind.name(), a.plant.label()), &lab.recorder.rows, lab.scenario.scale.gear_ratio)?;
-        println!("  wrote {}, {}, {}", csv.display(), log.display(), png.display());
+        plot_run(
+            &png,
+            &format!("{} — {}", kind.name(), a.plant.label()),
+            &lab.recorder.rows,
+            lab.scenario.scale.gear_ratio,
+        )?;
+        println!(
+            "  wrote {}, {}, {}",
+            csv.display(),
+            log.display(),
+            png.display()
+        );
         if stop.load(Ordering::Relaxed) {
             println!("  interrupted: recording flushed");
             break;
@@ -222,8 +252,18 @@ pub struct CardArgs {
 /// Runs the card node until Ctrl-C.
 pub fn card(a: CardArgs) -> Result<()> {
     let mut bus = open(&a.bus)?;
-    let mut card = CardNode::new(node(a.bus.node)?, !a.bus.realtime).map_err(|e| anyhow!("{e:?}"))?;
-    eprintln!("card node {} on {} ({})", a.bus.node, a.bus.bus, if a.bus.realtime { "real time" } else { "lockstep" });
+    let mut card =
+        CardNode::new(node(a.bus.node)?, !a.bus.realtime).map_err(|e| anyhow!("{e:?}"))?;
+    eprintln!(
+        "card node {} on {} ({})",
+        a.bus.node,
+        a.bus.bus,
+        if a.bus.realtime {
+            "real time"
+        } else {
+            "lockstep"
+        }
+    );
     let stop = stop_on_ctrl_c();
     run_card(bus.as_mut(), &mut card, !a.bus.realtime, &stop)
 }
@@ -266,10 +306,23 @@ fn plant_loop(
     stop: &AtomicBool,
 ) -> Result<(PlantStats, Recorder)> {
     let n = node(a.bus.node)?;
-    let env = sc.map(|s| s.environment(0.0)).unwrap_or(sim_plant::Environment::Free);
-    let plant = Plant::new(model, PlantOptions { seed: a.seed, environment: env, ..PlantOptions::default() })?;
+    let env = sc
+        .map(|s| s.environment(0.0))
+        .unwrap_or(sim_plant::Environment::Free);
+    let plant = Plant::new(
+        model,
+        PlantOptions {
+            seed: a.seed,
+            environment: env,
+            ..PlantOptions::default()
+        },
+    )?;
     let mut pn = PlantNode::new(plant, n);
-    let mut rec = Recorder::new(n, model.motor.counts_per_rev.value, model.plant.gear_ratio.value);
+    let mut rec = Recorder::new(
+        n,
+        model.motor.counts_per_rev.value,
+        model.plant.gear_ratio.value,
+    );
     if let Some(p) = &a.csv {
         rec.write_csv(p)?;
     }
@@ -281,18 +334,33 @@ fn plant_loop(
     if a.bus.realtime {
         lp.clock = Clock::RealTime;
     } else {
-        lp.clock = Clock::Lockstep { timeout: Duration::from_millis(a.timeout_ms) };
+        lp.clock = Clock::Lockstep {
+            timeout: Duration::from_millis(a.timeout_ms),
+        };
     }
     let pb = bar(ticks, a.quiet);
-    let st = run_plant(bus, &mut pn, sc, &mut rec, lp, stop, |k, _| pb.set_position(k))?;
+    let st = run_plant(bus, &mut pn, sc, &mut rec, lp, stop, |k, _| {
+        pb.set_position(k)
+    })?;
     pb.finish_and_clear();
     Ok((st, rec))
 }
 
 fn print_plant_stats(st: &PlantStats) {
     let (exact, worst) = st.bus_load();
-    println!("  ticks {}  missing actuator frames {}  stale {}  wall {:.2} s  ({:.0} cycles/s)", st.ticks, st.missing, st.stale, st.wall.as_secs_f64(), st.cycles_per_second());
-    println!("  bus load seen by the plant: {:.1} % exact, {:.1} % worst-case stuffing (1 Mbit/s)", exact * 100.0, worst * 100.0);
+    println!(
+        "  ticks {}  missing actuator frames {}  stale {}  wall {:.2} s  ({:.0} cycles/s)",
+        st.ticks,
+        st.missing,
+        st.stale,
+        st.wall.as_secs_f64(),
+        st.cycles_per_second()
+    );
+    println!(
+        "  bus load seen by the plant: {:.1} % exact, {:.1} % worst-case stuffing (1 Mbit/s)",
+        exact * 100.0,
+        worst * 100.0
+    );
     if let Some((p50, p99, max)) = st.jitter_us {
         println!("  tick lateness: p50 {p50:.0} µs  p99 {p99:.0} µs  max {max:.0} µs");
     }
@@ -352,7 +420,11 @@ pub struct SuperviseArgs {
 }
 
 fn parse_mode(s: &str) -> Result<Mode> {
-    let want: String = s.chars().filter(|c| c.is_ascii_alphanumeric()).collect::<String>().to_lowercase();
+    let want: String = s
+        .chars()
+        .filter(|c| c.is_ascii_alphanumeric())
+        .collect::<String>()
+        .to_lowercase();
     Mode::ALL
         .iter()
         .copied()
@@ -392,7 +464,16 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
             return Err(e);
         }
     }
-    let sup = Supervisor::new(node(a.bus.node)?, sc.scale, entries, sc.mode, sc.target, sc.trajectory.clone(), sc.rate_hz, Some(sc.streaming_s()));
+    let sup = Supervisor::new(
+        node(a.bus.node)?,
+        sc.scale,
+        entries,
+        sc.mode,
+        sc.target,
+        sc.trajectory.clone(),
+        sc.rate_hz,
+        Some(sc.streaming_s()),
+    );
     Ok((sc, sup))
 }
 
@@ -405,29 +486,43 @@ pub fn supervise(a: SuperviseArgs) -> Result<()> {
     let die = a.die_after;
     let quiet = a.quiet;
     let mut seen = 0usize;
-    let ticks = run_supervisor(bus.as_mut(), &mut sup, node(a.bus.node)?, &stop, 50, |k, s| {
-        for e in s.events.iter().skip(seen) {
-            eprintln!("\n[{:>7.3} s] {}", k as f64 * 1e-3, match e {
-                Event::Committed => "parameter set committed".to_string(),
-                Event::Refused(w) => format!("REFUSED: {w}"),
-                Event::Fault(w) => format!("FAULT: {w}"),
-            });
-        }
-        seen = s.events.len();
-        if !quiet && k % 100 == 0 {
-            let t = &s.telemetry;
-            eprint!(
+    let ticks = run_supervisor(
+        bus.as_mut(),
+        &mut sup,
+        node(a.bus.node)?,
+        &stop,
+        50,
+        |k, s| {
+            for e in s.events.iter().skip(seen) {
+                eprintln!(
+                    "\n[{:>7.3} s] {}",
+                    k as f64 * 1e-3,
+                    match e {
+                        Event::Committed => "parameter set committed".to_string(),
+                        Event::Refused(w) => format!("REFUSED: {w}"),
+                        Event::Fault(w) => format!("FAULT: {w}"),
+                    }
+                );
+            }
+            seen = s.events.len();
+            if !quiet && k % 100 == 0 {
+                let t = &s.telemetry;
+                eprint!(
                 "\r[{:>7.3} s] {:?} {:?}  sp {:+.4}  pos {:+.4} rad  vel {:+.3} rad/s  τcmd {:+.3} N·m  τout {:+.2} N·m   ",
                 k as f64 * 1e-3, s.phase(), t.state, s.last_setpoint, t.position, t.velocity, t.torque_cmd, t.output_torque
             );
-        }
-        if die.is_some_and(|d| k >= d) {
-            // simulated crash: exit without a word, as a killed supervisor would
-            std::process::exit(0);
-        }
-    })?;
+            }
+            if die.is_some_and(|d| k >= d) {
+                // simulated crash: exit without a word, as a killed supervisor would
+                std::process::exit(0);
+            }
+        },
+    )?;
     eprintln!();
-    println!("supervisor done after {ticks} ticks, phase {:?}", sup.phase());
+    println!(
+        "supervisor done after {ticks} ticks, phase {:?}",
+        sup.phase()
+    );
     if sup.events.iter().any(|e| matches!(e, Event::Fault(_))) || sup.phase() != Phase::Stopped {
         bail!("the run ended with a fault or before its script finished");
     }
@@ -493,11 +588,21 @@ pub fn run(a: RunArgs) -> Result<()> {
     };
     let res = plant_loop(&pa, plant_bus.as_mut(), &model, Some(&sc), &stop);
     done.store(true, Ordering::SeqCst);
-    let sup = sup_thread.join().map_err(|_| anyhow!("supervisor thread panicked"))??;
-    card_thread.join().map_err(|_| anyhow!("card thread panicked"))??;
+    let sup = sup_thread
+        .join()
+        .map_err(|_| anyhow!("supervisor thread panicked"))??;
+    card_thread
+        .join()
+        .map_err(|_| anyhow!("card thread panicked"))??;
     let (st, rec) = res?;
     let (exact, worst) = st.bus_load();
-    println!("\n{} on {} over {} ({})", sc.kind.name(), a.sup.plant.label(), a.sup.bus.bus, if lockstep { "lockstep" } else { "real time" });
+    println!(
+        "\n{} on {} over {} ({})",
+        sc.kind.name(),
+        a.sup.plant.label(),
+        a.sup.bus.bus,
+        if lockstep { "lockstep" } else { "real time" }
+    );
     println!("{}", summarize(&sc, &rec.rows, exact, worst).table());
     print_plant_stats(&st);
     for e in &sup.events {
@@ -506,7 +611,12 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
     }
     if let Some(p) = &a.plot {
-        plot_run(p, &format!("{} — {}", sc.kind.name(), a.sup.plant.label()), &rec.rows, sc.scale.gear_ratio)?;
+        plot_run(
+            p,
+            &format!("{} — {}", sc.kind.name(), a.sup.plant.label()),
+            &rec.rows,
+            sc.scale.gear_ratio,
+        )?;
     }
     Ok(())
 }
@@ -527,7 +637,10 @@ pub fn replay(a: ReplayArgs) -> Result<()> {
     if let Some(spec) = &a.bus {
         let mut bus = open_bus(spec).map_err(|e| anyhow!("{e}"))?;
         let t0 = std::time::Instant::now();
-        let first = recs.first().map(|r| r.time.as_duration()).unwrap_or_default();
+        let first = recs
+            .first()
+            .map(|r| r.time.as_duration())
+            .unwrap_or_default();
         let mut sent = 0;
         for r in &recs {
             if let LoggedFrame::Can(f) = &r.frame {
@@ -546,7 +659,9 @@ pub fn replay(a: ReplayArgs) -> Result<()> {
         let t = r.time.as_duration().as_secs_f64();
         match &r.frame {
             LoggedFrame::Can(f) => match Message::decode(f) {
-                Ok((n, m)) => println!("{t:>14.6} {:>6} {f:<24} node {:>3} {m:?}", r.iface, n.get()),
+                Ok((n, m)) => {
+                    println!("{t:>14.6} {:>6} {f:<24} node {:>3} {m:?}", r.iface, n.get())
+                }
                 Err(e) => println!("{t:>14.6} {:>6} {f:<24} (not jointlab: {e:?})", r.iface),
             },
             other => println!("{t:>14.6} {:>6} {other:?}", r.iface),
@@ -579,8 +694,15 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     let wall = t0.elapsed().as_secs_f64();
     let ticks = lab.scenario.ticks() as f64;
     let s = lab.summary();
-    println!("in-process bus, one thread, lockstep ({}):", a.plant.label());
-    println!("  {:.0} cycles/s  ({:.1}× real time)", ticks / wall, ticks / wall / 1000.0);
+    println!(
+        "in-process bus, one thread, lockstep ({}):",
+        a.plant.label()
+    );
+    println!(
+        "  {:.0} cycles/s  ({:.1}× real time)",
+        ticks / wall,
+        ticks / wall / 1000.0
+    );
     println!(
         "  bus load measured {:.1} % exact / {:.1} % worst-case; protocol's computed figure 35.5 % (sensor + actuator + telemetry, worst case)",
         s.get("bus load (exact bits)").unwrap_or(0.0),
@@ -589,7 +711,11 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     if let Some(bus) = &a.bus {
         let ra = RunArgs {
             sup: SuperviseArgs {
-                bus: BusArgs { bus: bus.clone(), node: 1, realtime: false },
+                bus: BusArgs {
+                    bus: bus.clone(),
+                    node: 1,
+                    realtime: false,
+                },
                 plant: a.plant.clone(),
                 scenario: "stiffness".into(),
                 mode: None,

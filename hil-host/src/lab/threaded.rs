@@ -105,7 +105,9 @@ impl PlantLoop {
     /// Lockstep for `ticks`, pacing on the supervisor with a 100-tick window.
     pub fn lockstep(ticks: u64) -> Self {
         PlantLoop {
-            clock: Clock::Lockstep { timeout: Duration::from_millis(200) },
+            clock: Clock::Lockstep {
+                timeout: Duration::from_millis(200),
+            },
             ticks,
             supervisor_window: 100,
             supervisor_grace: Duration::from_millis(1500),
