@@ -482,3 +482,38 @@ proptest! {
         prop_assert!(friction || driven > 1000, "the card must actually drive to test the limit: {driven} {:?} {:?}", rig.card.state(), rig.card.fault());
     }
 }
+
+#[test]
+fn watchdog_hold_position_holds_until_cleared() {
+    let mut g = pd_gains(2.0, 0.008, 1.0);
+    g.push((p::SUPERVISOR_TIMEOUT, 30));
+    g.push((
+        p::WATCHDOG_REACTION,
+        p::WatchdogReaction::HoldPosition as i32,
+    ));
+    let mut r = armed(Mode::PositionPdColocated, &g);
+    r.setpoint(300);
+    for _ in 0..25 {
+        r.tick();
+        r.keepalive();
+    }
+    // supervisor silent; a load pushes the rotor while the card holds
+    for _ in 0..40 {
+        r.tick();
+    }
+    assert_eq!(r.faults(), vec![FaultCode::SupervisorWatchdog]);
+    assert_eq!(r.card.state(), State::FaultReaction, "holding, latched");
+    let held = r.rotor.counts() as i32;
+    r.rotor.load = 0.2;
+    let mut max_dev = 0;
+    for _ in 0..500 {
+        let a = r.tick();
+        assert!(a.drive && a.fault, "drives (holds) and reports the fault");
+        max_dev = max_dev.max((r.rotor.counts() as i32 - held).abs());
+    }
+    // a PD hold under load: deflection load/Ke, at 2 N·m/rad ≈ 0.1 rad ≈ 37 counts
+    assert!(max_dev > 5 && max_dev < 60, "held within {max_dev} counts");
+    r.send(Message::ControlWord(ControlWord::ClearFault));
+    assert_eq!(r.card.state(), State::Disabled);
+    assert_eq!(r.tick().torque, 0);
+}

@@ -83,6 +83,8 @@ pub struct CardConfig {
     pub position_limits: Option<(i64, i64)>,
     /// |τenv| limit in output LSB (0.01 N·m).
     pub output_torque_limit: i32,
+    /// The hold-position reaction's law: colocated PD with the active Ke/Be.
+    pub hold: PositionConfig,
     /// Quick-stop / fault-reaction damping: τLSB per (1/16 count/s).
     pub quick_stop_damping: Gain,
     /// Below this |ẋ1| (1/16 count/s) a quick stop is complete.
@@ -333,6 +335,16 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         velocity_limit: counts_per_s_to_law(s.raw(p::VELOCITY_LIMIT)),
         position_limits,
         output_torque_limit: s.raw(p::OUTPUT_TORQUE_LIMIT),
+        hold: PositionConfig {
+            pid: PidConfig {
+                kp: ke,
+                kd: be,
+                ki_t: Gain::ZERO,
+                i_limit: 0,
+                tau_max: torque_limit,
+            },
+            feedback: Feedback::Colocated,
+        },
         quick_stop_damping: per_rate(p::QUICK_STOP_DAMPING)?,
         standstill_velocity: counts_per_s_to_law(s.raw(p::STANDSTILL_VELOCITY)),
         velocity_ff_gain: be,

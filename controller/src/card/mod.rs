@@ -28,7 +28,7 @@ pub mod store;
 use embedded_can::Frame;
 
 use crate::fixed_math::{clamp_sym, Counts, Flags, Torque, Vel};
-use crate::laws::{JointState, Measurements, Setpoint};
+use crate::laws::{JointState, Measurements, PositionLaw, Setpoint};
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::{
     self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode, NodeId,
@@ -68,6 +68,8 @@ pub struct Sensors {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 enum Reaction {
+    /// Hold the position where the fault happened (PD with the active Ke/Be), latched.
+    Hold,
     /// Torque zero at once.
     ZeroTorque,
     /// Quick-stop damping to standstill.
@@ -116,6 +118,9 @@ pub struct Card {
     counters: RejectCounters,
     outbox: heapless::Deque<Message, OUTBOX_CAPACITY>,
     commits: u32,
+    /// Position-hold reaction: where, and its law state.
+    hold_at: Counts,
+    hold: PositionLaw,
 }
 
 /// Law flags → wire limit flags.
@@ -181,6 +186,8 @@ impl Card {
             counters: RejectCounters::new(),
             outbox: heapless::Deque::new(),
             commits: 0,
+            hold_at: 0,
+            hold: PositionLaw::default(),
         })
     }
 
@@ -427,6 +434,12 @@ impl Card {
                 self.state = State::QuickStop;
                 true
             }
+            (ControlWord::ClearFault, State::FaultReaction) if self.reaction == Reaction::Hold => {
+                self.state = State::Disabled;
+                self.fault = None;
+                self.joint.reset();
+                true
+            }
             (ControlWord::ClearFault, State::Fault) => {
                 self.state = State::Disabled;
                 self.fault = None;
@@ -469,6 +482,7 @@ impl Card {
             FaultCode::SupervisorWatchdog => match self.cfg.watchdog_reaction {
                 WatchdogReaction::ZeroTorque => Reaction::ZeroTorque,
                 WatchdogReaction::QuickStop => Reaction::Damp,
+                WatchdogReaction::HoldPosition => Reaction::Hold,
             },
             FaultCode::PositionLimit
             | FaultCode::VelocityLimit
@@ -476,7 +490,9 @@ impl Card {
             | FaultCode::Overflow => Reaction::Damp,
             _ => Reaction::ZeroTorque,
         };
-        self.state = if was_driving && self.reaction == Reaction::Damp {
+        self.hold_at = self.last_meas.x1;
+        self.hold = PositionLaw::default();
+        self.state = if was_driving && self.reaction != Reaction::ZeroTorque {
             State::FaultReaction
         } else {
             State::Fault
@@ -701,6 +717,11 @@ impl Card {
                     _ => 0,
                 };
                 i64::from(out.out.tau).saturating_add(ff)
+            }
+            State::FaultReaction if self.reaction == Reaction::Hold => {
+                let out = self.hold.step(&self.cfg.hold, self.hold_at, x1, v1);
+                flags |= out.flags;
+                i64::from(out.tau)
             }
             State::QuickStop | State::FaultReaction => {
                 let damp = self

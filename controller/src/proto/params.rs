@@ -69,6 +69,9 @@ wire_enum! {
         ZeroTorque = 0,
         /// Brake with quick-stop damping (0x0307) to standstill, then zero torque.
         QuickStop = 1,
+        /// Hold the position where the watchdog fired, with the active Ke/Be on the motor
+        /// encoder, until `ClearFault` (a vertical axis must not drop).
+        HoldPosition = 2,
     }
 }
 
@@ -188,7 +191,7 @@ params! {
     RIPPLE_TABLE = 0x0640 x 64, "ripple_table", Any, "τLSB (entry i at 0x0640 + i)", i16::MIN as i32, TQ, 0;
     // --- 0x07xx watchdogs ---
     SUPERVISOR_TIMEOUT = 0x0700, "supervisor_timeout", Any, "ms", 1, 60_000, 200;
-    WATCHDOG_REACTION = 0x0701, "watchdog_reaction", Any, "enum WatchdogReaction", 0, 1, 1;
+    WATCHDOG_REACTION = 0x0701, "watchdog_reaction", Any, "enum WatchdogReaction", 0, 2, 1;
     SENSOR_TIMEOUT = 0x0702, "sensor_timeout", Any, "µs", 1_100, 100_000, 3_000;
     MAX_SEQ_SKIP = 0x0703, "max_seq_skip", Any, "lost sensor frames tolerated in a row", 0, 255, 2;
     // --- 0x08xx telemetry ---
