@@ -184,12 +184,10 @@ impl PeriodicTorque {
         (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
     }
 
-    /// As [`PeriodicTorque::torque`], with the angle's sine and cosine tracked by `rotor`
-    /// (the integrator's fast path).
-    #[inline(always)]
-    pub fn torque_tracked(&self, rotor: &mut crate::fastmath::Rotor, q: f64, load: f64) -> f64 {
-        let (s, c) = rotor.sin_cos(self.wavenumber * q);
-        (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
+    /// The integrator's form of `sin·sin(k·q) + cos·cos(k·q)` (without the load growth): a
+    /// precomputed [`Harmonic`](crate::fastmath::Harmonic).
+    pub fn harmonic(&self) -> crate::fastmath::Harmonic {
+        crate::fastmath::Harmonic::new(self.sin, self.cos, self.wavenumber)
     }
 
     /// Whether the torque is identically zero.
