@@ -482,6 +482,9 @@ impl Plant {
             (m.i2, m.inv_i2)
         };
         let h_over_i = h * inv_inertia;
+        // h/I folded into one factor per node (a reassociation of h·(τ/I)).
+        let h_over_i1 = h * m.inv_i1;
+        let h_over_im = h * m.inv_im;
         let mut x = self.x;
         let mut v = self.v;
         let mut stuck = self.stuck;
@@ -562,7 +565,7 @@ impl Plant {
                 laws.actuator.shape(old)
             };
             // Forces at the current (mid-step) positions, full velocity update.
-            out = match KIND {
+            let sub = match KIND {
                 RIGID => {
                     let [q, _, _] = x;
                     let vq = v[0];
@@ -582,8 +585,9 @@ impl Plant {
                     let [x0, _, x2] = x;
                     let [v0, _, v2] = v;
                     let tt = spring.torque(x0 - x2, v0 - v2);
-                    let a0 = (u - tt - m.b1 * v0 - motor_load(x0, v0, tt)) * m.inv_i1;
-                    let v0n = v0 + h * a0;
+                    let net0 = u - tt - m.b1 * v0 - motor_load(x0, v0, tt);
+                    let a0 = net0 * m.inv_i1;
+                    let v0n = v0 + net0 * h_over_i1;
                     let tau = tt - m.b2 * v2 - output_load(x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tau, &mut stuck);
                     v = [v0n, v0n, vn];
@@ -601,11 +605,12 @@ impl Plant {
                     let [v0, v1, v2] = v;
                     let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                     let tt = spring.torque(x1 - x2, v1 - v2);
-                    let a0 = (u - ts - m.b1 * v0 - motor_load(x0, v0, ts)) * m.inv_i1;
-                    let a1 = (ts - tt) * m.inv_im;
+                    let net0 = u - ts - m.b1 * v0 - motor_load(x0, v0, ts);
+                    let a0 = net0 * m.inv_i1;
+                    let net1 = ts - tt;
                     let tau = tt - m.b2 * v2 - output_load(x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tau, &mut stuck);
-                    v = [v0 + h * a0, v1 + h * a1, vn];
+                    v = [v0 + net0 * h_over_i1, v1 + net1 * h_over_im, vn];
                     Substep {
                         applied: u,
                         motor_accel: a0,
@@ -616,6 +621,10 @@ impl Plant {
                     }
                 }
             };
+            // Only the last substep's quantities are kept (kept out of registers meanwhile).
+            if k + 1 == count {
+                out = sub;
+            }
             before = v[node];
             let d = if k + 1 == count { 0.5 * h } else { h };
             for i in 0..3 {
