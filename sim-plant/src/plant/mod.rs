@@ -401,7 +401,7 @@ impl Plant {
 
     /// Read the sensors for the current state (draws noise, advances the delay line).
     pub fn read_sensors(&mut self) -> Sensors {
-        let s = self.last;
+        let s = &self.last;
         self.sensors.sample(
             s.motor_angle,
             s.motor_velocity,
