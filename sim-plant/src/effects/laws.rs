@@ -56,15 +56,28 @@ impl FrictionLaw {
     /// Resisting torque while sliding with velocity `v ≠ 0` (same sign as `v`).
     #[inline(always)]
     pub fn sliding(&self, v: f64) -> f64 {
+        // Without a stiction excess the Stribeck term is exactly 0: skip its exp().
         if v > 0.0 {
-            let dry = self.coulomb_pos
-                + self.excess_pos
-                    * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent);
+            let dry = if self.excess_pos > 0.0 {
+                self.coulomb_pos
+                    + self.excess_pos
+                        * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent)
+            } else {
+                self.coulomb_pos
+            };
             dry + self.viscous_pos * v
         } else if v < 0.0 {
-            let dry = self.coulomb_neg
-                + self.excess_neg
-                    * stribeck::decay_inv(-v, self.inv_stribeck_velocity, self.stribeck_exponent);
+            let dry = if self.excess_neg > 0.0 {
+                self.coulomb_neg
+                    + self.excess_neg
+                        * stribeck::decay_inv(
+                            -v,
+                            self.inv_stribeck_velocity,
+                            self.stribeck_exponent,
+                        )
+            } else {
+                self.coulomb_neg
+            };
             -dry + self.viscous_neg * v
         } else {
             0.0
