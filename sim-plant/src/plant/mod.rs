@@ -517,10 +517,12 @@ impl Plant {
             r
         };
         // The friction node at position `q` with velocity `v_old` at the start of the substep
-        // and non-friction, non-environment torque `tau`: (new velocity, friction,
-        // environment torque on the node, acceleration).
-        let friction_node = |q: f64, v_old: f64, tau: f64, stuck: &mut bool| {
+        // and non-friction, non-environment torque `drive − load` (the position-dependent
+        // `load` last, which keeps it off the front of the dependency chain): (new velocity,
+        // friction, environment torque on the node, acceleration).
+        let friction_node = |q: f64, v_old: f64, drive: f64, load: f64, stuck: &mut bool| {
             if ENV == KINEMATIC {
+                let tau = drive - load;
                 // The environment imposes the motion and carries the reaction.
                 let f = if vp == 0.0 { 0.0 } else { fl.sliding(vp) };
                 let a = (vp - v_old) * inv_h;
@@ -533,7 +535,7 @@ impl Plant {
                 TORQUE => env_t,
                 _ => env.torque(q, v_old),
             };
-            let (vn, f) = friction::advance(v_old, stuck, tau + e, h_over_i, &fl, dry);
+            let (vn, f) = friction::advance(v_old, stuck, drive + e, load, h_over_i, &fl, dry);
             (vn, f, e, (vn - v_old) * inv_h)
         };
 
@@ -569,8 +571,8 @@ impl Plant {
                 RIGID => {
                     let [q, _, _] = x;
                     let vq = v[0];
-                    let tau = u - m.b1 * vq - output_load(q, vq, u) - motor_load(q, vq, u);
-                    let (vn, f, e, a) = friction_node(q, before, tau, &mut stuck);
+                    let load = output_load(q, vq, u) + motor_load(q, vq, u);
+                    let (vn, f, e, a) = friction_node(q, before, u - m.b1 * vq, load, &mut stuck);
                     v = [vn; 3];
                     Substep {
                         applied: u,
@@ -588,8 +590,8 @@ impl Plant {
                     let net0 = u - tt - m.b1 * v0 - motor_load(x0, v0, tt);
                     let a0 = net0 * m.inv_i1;
                     let v0n = v0 + net0 * h_over_i1;
-                    let tau = tt - m.b2 * v2 - output_load(x2, v2, tt);
-                    let (vn, f, e, a) = friction_node(x2, before, tau, &mut stuck);
+                    let load = output_load(x2, v2, tt);
+                    let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0n, v0n, vn];
                     Substep {
                         applied: u,
@@ -608,8 +610,8 @@ impl Plant {
                     let net0 = u - ts - m.b1 * v0 - motor_load(x0, v0, ts);
                     let a0 = net0 * m.inv_i1;
                     let net1 = ts - tt;
-                    let tau = tt - m.b2 * v2 - output_load(x2, v2, tt);
-                    let (vn, f, e, a) = friction_node(x2, before, tau, &mut stuck);
+                    let load = output_load(x2, v2, tt);
+                    let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0 + net0 * h_over_i1, v1 + net1 * h_over_im, vn];
                     Substep {
                         applied: u,
