@@ -5,8 +5,13 @@
 //! `cargo bench -p sim-plant --bench realtime` (release profile). The goal is ≥ 5000× real
 //! time. On a shared machine a single timing is meaningless, so each figure is the best of
 //! many short runs by the wall clock (short runs are likely to go uninterrupted), printed with
-//! the mean over all runs of this thread's CPU time (`/proc/thread-self/schedstat`, which the
-//! kernel accounts in ticks — hence the long total).
+//! the mean over all runs of this thread's CPU time (`/proc/thread-self/schedstat`, the
+//! kernel's per-thread run time in ns — the workspace forbids `unsafe`, so no
+//! `clock_gettime(CLOCK_THREAD_CPUTIME_ID)`), also as CPU µs per simulated second, the figure
+//! that least depends on what else the machine runs.
+//!
+//! For a figure independent of the machine altogether, count instructions per substep with
+//! callgrind on `examples/insn_probe.rs` (same driving as here; see its docs).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -73,9 +78,12 @@ fn main() {
     let filter = args.iter().find(|a| !a.starts_with('-')).cloned();
     let (secs, runs) = if full { (10.0, 25) } else { (0.2, 1) };
     println!("simulated seconds per second, one core, 10 kHz substeps, 1 kHz step() calls:");
-    println!("best of {runs} runs of {secs} s by wall clock [mean by this thread's CPU time]");
     println!(
-        "{:<20} {:>22} {:>22}",
+        "best of {runs} runs of {secs} s by wall clock [mean by this thread's CPU time; \
+         CPU µs per simulated s]"
+    );
+    println!(
+        "{:<20} {:>30} {:>30}",
         "preset", "free output", "spring Kf = 7.75e5"
     );
     for name in preset_names() {
@@ -90,9 +98,12 @@ fn main() {
         };
         let (spring, spring_cpu) = measure(name, spring_env, secs, runs);
         println!(
-            "{name:<20} {:>22} {:>22}",
-            format!("{free:.0}× [{free_cpu:.0}×]"),
-            format!("{spring:.0}× [{spring_cpu:.0}×]")
+            "{name:<20} {:>30} {:>30}",
+            format!("{free:.0}× [{free_cpu:.0}×; {:.0} µs]", 1e6 / free_cpu),
+            format!(
+                "{spring:.0}× [{spring_cpu:.0}×; {:.0} µs]",
+                1e6 / spring_cpu
+            )
         );
     }
 }

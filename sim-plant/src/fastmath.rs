@@ -1,106 +1,171 @@
-//! A fast, deterministic sine/cosine for the position-periodic torques (ripple, cogging,
-//! gravity) evaluated every substep. libm's `sincos` was 40 % of the run time; these torques
-//! are model approximations at the percent level, so ~1e-9 absolute accuracy is plenty.
-//! Pure f64 arithmetic in a fixed order: bit-identical on every IEEE-754 platform, unlike
-//! libm, whose last bits may differ between implementations.
+//! Fast, deterministic sine/cosine for the position-periodic torques (ripple, cogging,
+//! gravity) evaluated every substep, and a libm-free `round`.
+//!
+//! Both trig routines reduce the angle to the nearest of 256 table points and correct with a
+//! short polynomial of the remainder (|r| ≤ π/256), which is accurate to a few 1e-16 and has
+//! no branches, no state and a short dependency chain (the angle depends on the previous
+//! substep, so *latency* is what counts). The table is computed at compile time by `const fn`
+//! (IEEE-754 arithmetic in a fixed order), so results are bit-identical on every platform,
+//! unlike libm's, whose last bits may differ between implementations.
 
-use std::f64::consts::FRAC_PI_2;
+use std::f64::consts::TAU;
 
-/// (sin x, cos x) with |error| < 2e-9 for |x| < 1e6 (the reduction loses ~|x|·1e-16);
-/// beyond |x| ≈ 2e15 the quadrant is lost and the result is meaningless.
-///
-/// Why it looks like this: in the integrator the angle depends on the previous substep, so
-/// what counts is *latency*, not throughput. Rounding uses the 1.5·2⁵² trick (two adds, no
-/// int↔float conversions on the dependency chain) and the polynomials are evaluated in
-/// Estrin's form (depth 3 instead of Horner's 6).
+/// Table points per period.
+const N: usize = 256;
+/// 1.5·2⁵²: `y + MAGIC` rounds `y` to an integer (|y| < 2⁵¹), held in the low mantissa bits.
+const MAGIC: f64 = 6_755_399_441_055_744.0;
+/// Table spacing 2π/N (rad).
+const STEP: f64 = TAU / N as f64;
+/// Table points per radian, N/2π.
+const PER_RAD: f64 = N as f64 / TAU;
+// Remainder polynomials in the table fraction f ∈ [−½, ½] (r = f·STEP):
+// sin r = f·(S1 + f²·(S3 + f²·S5)), truncation r⁷/7! < 1e-17;
+// cos r − 1 = f²·(C2 + f²·(C4 + f²·C6)), truncation r⁸/8! < 2e-20.
+const S1: f64 = STEP;
+const S3: f64 = -STEP * STEP * STEP / 6.0;
+const S5: f64 = STEP * STEP * STEP * STEP * STEP / 120.0;
+const C2: f64 = -STEP * STEP / 2.0;
+const C4: f64 = STEP * STEP * STEP * STEP / 24.0;
+const C6: f64 = -STEP * STEP * STEP * STEP * STEP * STEP / 720.0;
+
+/// (sin x, cos x) of x ∈ [0, π/4] by Taylor series to x²⁵ (compile time only).
+const fn taylor_sin_cos(x: f64) -> (f64, f64) {
+    let x2 = x * x;
+    let mut s = 0.0;
+    let mut c = 0.0;
+    let mut ts = x; // x^(2k+1)/(2k+1)!·(−1)^k
+    let mut tc = 1.0; // x^(2k)/(2k)!·(−1)^k
+    let mut k = 0;
+    while k < 13 {
+        s += ts;
+        c += tc;
+        let a = (2 * k + 2) as f64;
+        let b = (2 * k + 3) as f64;
+        ts = -ts * x2 / (a * b);
+        tc = -tc * x2 / ((a - 1.0) * a);
+        k += 1;
+    }
+    (s, c)
+}
+
+/// `[sin, cos]` of j·2π/N for j in 0..N, from the first octant by exact symmetries.
+const fn build_table() -> [[f64; 2]; N] {
+    let mut t = [[0.0; 2]; N];
+    let quarter = N / 4;
+    let mut j = 0;
+    while j < N {
+        let quadrant = j / quarter;
+        let i = j % quarter; // angle i·STEP ∈ [0, π/2)
+        let (s, c) = if 2 * i <= quarter {
+            taylor_sin_cos(i as f64 * STEP)
+        } else {
+            let (s, c) = taylor_sin_cos((quarter - i) as f64 * STEP);
+            (c, s)
+        };
+        t[j] = match quadrant {
+            0 => [s, c],
+            1 => [c, -s],
+            2 => [-s, -c],
+            _ => [-c, s],
+        };
+        j += 1;
+    }
+    t
+}
+
+/// `[sin, cos]` of j·2π/256.
+static TABLE: [[f64; 2]; N] = build_table();
+
+/// Table index and fraction for the angle `y` in table steps: y = index + f (mod N).
+#[inline(always)]
+fn reduce(y: f64) -> (usize, f64) {
+    let shifted = y + MAGIC;
+    let index = (shifted.to_bits() as usize) & (N - 1); // the integer, mod N
+    (index, y - (shifted - MAGIC))
+}
+
+/// (sin r − …) pieces of the remainder: (cos r − 1, sin r) for r = f·STEP.
+#[inline(always)]
+fn remainder(f: f64) -> (f64, f64) {
+    let f2 = f * f;
+    (
+        f2 * (C2 + f2 * (C4 + f2 * C6)),
+        f * (S1 + f2 * (S3 + f2 * S5)),
+    )
+}
+
+/// (sin x, cos x) with |error| < 1e-15 + |x|·2⁻⁵³ for |x| < 1e13; beyond |x| ≈ 5e13 the
+/// table index is lost and the result is meaningless.
 #[inline(always)]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    const PIO2_HI: f64 = FRAC_PI_2; // nearest f64 to π/2
-    const PIO2_LO: f64 = 6.123_233_995_736_766e-17;
-    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: x + MAGIC rounds x to an integer
-    let y = x * (1.0 / FRAC_PI_2);
-    let shifted = y + MAGIC;
-    let quadrant = shifted.to_bits() & 3; // low mantissa bits = the integer, mod 4
-    let k = shifted - MAGIC;
-    let r = (x - k * PIO2_HI) - k * PIO2_LO; // r ∈ [−π/4, π/4]
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let r8 = r4 * r4;
-    // Taylor to r¹¹ / r¹²: truncation < (π/4)¹³/13! ≈ 7e-12.
-    const S1: f64 = -1.0 / 6.0;
-    const S2: f64 = 1.0 / 120.0;
-    const S3: f64 = -1.0 / 5040.0;
-    const S4: f64 = 1.0 / 362_880.0;
-    const S5: f64 = -1.0 / 39_916_800.0;
-    let sp = (1.0 + S1 * r2) + r4 * (S2 + S3 * r2) + r8 * (S4 + S5 * r2);
-    const C1: f64 = -0.5;
-    const C2: f64 = 1.0 / 24.0;
-    const C3: f64 = -1.0 / 720.0;
-    const C4: f64 = 1.0 / 40_320.0;
-    const C5: f64 = -1.0 / 3_628_800.0;
-    const C6: f64 = 1.0 / 479_001_600.0;
-    let c = (1.0 + C1 * r2) + r4 * (C2 + C3 * r2) + r8 * ((C4 + C5 * r2) + C6 * r4);
-    let s = r * sp;
-    match quadrant {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
+    let (j, f) = reduce(x * PER_RAD);
+    let (cm1, sr) = remainder(f);
+    let [s, c] = TABLE[j];
+    (s + (s * cm1 + c * sr), c + (c * cm1 - s * sr))
+}
+
+/// `a·sin(k·q) + b·cos(k·q)` with the amplitudes folded into the table, the integrator's form
+/// of a position-periodic torque: per call one multiply to the table angle, one table load
+/// and the remainder polynomial. Same accuracy as [`sin_cos`].
+#[derive(Clone)]
+pub struct Harmonic {
+    /// k·N/2π: table steps per unit of q.
+    steps_per_unit: f64,
+    /// Per table point j (angle φj): [a·sin φj + b·cos φj, a·cos φj − b·sin φj], the value
+    /// and the derivative by the angle.
+    table: Box<[[f64; 2]; N]>,
+}
+
+impl std::fmt::Debug for Harmonic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Harmonic")
+            .field("steps_per_unit", &self.steps_per_unit)
+            .field("table", &format_args!("[{N} points]"))
+            .finish()
     }
 }
 
-/// Sine and cosine of an angle that moves a little between calls: the previous (sin, cos)
-/// is rotated by the small increment (Taylor series of the increment, |Δ| < 1/16), which is
-/// about half the latency of [`sin_cos`]. Larger jumps, and the first call after
-/// [`Rotor::reset`], evaluate [`sin_cos`] afresh. The integrator resets its rotors every
-/// 1 kHz step, so at most a few tens of rotations accumulate (error < 1e-11).
-#[derive(Clone, Copy, Debug)]
-pub struct Rotor {
-    theta: f64,
-    s: f64,
-    c: f64,
-}
-
-impl Default for Rotor {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Rotor {
-    /// A rotor with no previous angle.
-    pub const fn new() -> Self {
+impl Harmonic {
+    /// `a·sin(k·q) + b·cos(k·q)`.
+    pub fn new(a: f64, b: f64, k: f64) -> Self {
+        let mut table = Box::new([[0.0; 2]; N]);
+        for (out, [s, c]) in table.iter_mut().zip(TABLE.iter()) {
+            *out = [a * s + b * c, a * c - b * s];
+        }
         Self {
-            theta: f64::NAN,
-            s: 0.0,
-            c: 1.0,
+            steps_per_unit: k * PER_RAD,
+            table,
         }
     }
 
-    /// Forget the previous angle (the next call evaluates afresh).
+    /// The value at `q`.
     #[inline(always)]
-    pub fn reset(&mut self) {
-        self.theta = f64::NAN;
+    pub fn eval(&self, q: f64) -> f64 {
+        let (j, f) = reduce(q * self.steps_per_unit);
+        let (cm1, sr) = remainder(f);
+        let [p, d] = self.table[j];
+        p + (p * cm1 + d * sr)
     }
+}
 
-    /// (sin θ, cos θ).
-    #[inline(always)]
-    pub fn sin_cos(&mut self, theta: f64) -> (f64, f64) {
-        let d = theta - self.theta; // NaN after a reset: the comparison fails
-        let (s, c) = if d.abs() < 0.0625 {
-            // Truncation: sin |Δ|⁷/7! < 7e-13, cos Δ⁸/8! < 6e-15 at |Δ| = 1/16.
-            let d2 = d * d;
-            let d4 = d2 * d2;
-            let sd = d * ((1.0 - d2 * (1.0 / 6.0)) + d4 * (1.0 / 120.0));
-            let cd = (1.0 - d2 * 0.5) + d4 * (1.0 / 24.0 - d2 * (1.0 / 720.0));
-            (self.s * cd + self.c * sd, self.c * cd - self.s * sd)
+/// `x.round()` (half away from zero) without the libm call baseline x86-64 makes for it:
+/// bit-identical to `f64::round` for every input, signed zeros and NaN included.
+#[inline(always)]
+pub fn round(x: f64) -> f64 {
+    // 2⁵²: every f64 at or beyond it is an integer (and the branch also routes NaN).
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64; // toward zero, exact here
+        let frac = x - t as f64; // exact
+        let r = if frac >= 0.5 {
+            t + 1
+        } else if frac <= -0.5 {
+            t - 1
         } else {
-            sin_cos(theta)
+            t
         };
-        self.theta = theta;
-        self.s = s;
-        self.c = c;
-        (s, c)
+        (r as f64).copysign(x)
+    } else {
+        x
     }
 }
 
@@ -117,22 +182,62 @@ mod tests {
             worst = worst.max((s - x.sin()).abs()).max((c - x.cos()).abs());
             x += 0.0137;
         }
-        assert!(worst < 2e-9, "worst error {worst:e}");
+        // The reduction of |x| ≤ 2000 alone costs up to 2000·2⁻⁵³ ≈ 2.2e-13.
+        assert!(worst < 5e-13, "worst error {worst:e}");
+        let mut worst: f64 = 0.0;
+        let mut x = -7.0;
+        while x < 7.0 {
+            let (s, c) = sin_cos(x);
+            worst = worst.max((s - x.sin()).abs()).max((c - x.cos()).abs());
+            x += 0.000_913;
+        }
+        assert!(worst < 2e-15, "worst error near 0 {worst:e}");
     }
 
     #[test]
-    fn rotor_tracks_small_steps_and_jumps() {
-        let mut r = Rotor::new();
-        let mut worst: f64 = 0.0;
-        let mut x = 0.3;
-        for k in 0..10_000 {
-            if k % 20 == 0 {
-                r.reset();
-            }
-            x += if k % 97 == 0 { 1.0 } else { 0.0311 };
-            let (s, c) = r.sin_cos(x);
-            worst = worst.max((s - x.sin()).abs()).max((c - x.cos()).abs());
+    fn table_is_exact_to_a_few_ulps() {
+        // The reference's own argument j·STEP is rounded (a few ulps of 2π), hence 1e-15.
+        for (j, [s, c]) in TABLE.iter().enumerate() {
+            let a = j as f64 * STEP;
+            assert!((s - a.sin()).abs() < 1e-15, "{j}: {:e}", s - a.sin());
+            assert!((c - a.cos()).abs() < 1e-15, "{j}: {:e}", c - a.cos());
         }
-        assert!(worst < 1e-10, "worst error {worst:e}");
+    }
+
+    #[test]
+    fn harmonic_matches_its_formula() {
+        let h = Harmonic::new(0.7, -1.3, 540.0);
+        let mut worst: f64 = 0.0;
+        let mut q: f64 = -3.0;
+        while q < 3.0 {
+            let exact = 0.7 * (540.0 * q).sin() - 1.3 * (540.0 * q).cos();
+            worst = worst.max((h.eval(q) - exact).abs());
+            q += 0.000_031_7;
+        }
+        assert!(worst < 1e-12, "worst error {worst:e}");
+    }
+
+    #[test]
+    fn round_is_f64_round() {
+        for x in [
+            0.0,
+            -0.0,
+            0.49,
+            0.5,
+            -0.5,
+            -0.3,
+            2.5,
+            -2.5,
+            0.499_999_999_999_999_94,
+            4_503_599_627_370_495.5,
+            4_503_599_627_370_497.0,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            assert_eq!(round(x).to_bits(), x.round().to_bits(), "{x}");
+        }
+        assert!(round(f64::NAN).is_nan());
     }
 }

@@ -56,15 +56,28 @@ impl FrictionLaw {
     /// Resisting torque while sliding with velocity `v ≠ 0` (same sign as `v`).
     #[inline(always)]
     pub fn sliding(&self, v: f64) -> f64 {
+        // Without a stiction excess the Stribeck term is exactly 0: skip its exp().
         if v > 0.0 {
-            let dry = self.coulomb_pos
-                + self.excess_pos
-                    * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent);
+            let dry = if self.excess_pos > 0.0 {
+                self.coulomb_pos
+                    + self.excess_pos
+                        * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent)
+            } else {
+                self.coulomb_pos
+            };
             dry + self.viscous_pos * v
         } else if v < 0.0 {
-            let dry = self.coulomb_neg
-                + self.excess_neg
-                    * stribeck::decay_inv(-v, self.inv_stribeck_velocity, self.stribeck_exponent);
+            let dry = if self.excess_neg > 0.0 {
+                self.coulomb_neg
+                    + self.excess_neg
+                        * stribeck::decay_inv(
+                            -v,
+                            self.inv_stribeck_velocity,
+                            self.stribeck_exponent,
+                        )
+            } else {
+                self.coulomb_neg
+            };
             -dry + self.viscous_neg * v
         } else {
             0.0
@@ -184,12 +197,10 @@ impl PeriodicTorque {
         (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
     }
 
-    /// As [`PeriodicTorque::torque`], with the angle's sine and cosine tracked by `rotor`
-    /// (the integrator's fast path).
-    #[inline(always)]
-    pub fn torque_tracked(&self, rotor: &mut crate::fastmath::Rotor, q: f64, load: f64) -> f64 {
-        let (s, c) = rotor.sin_cos(self.wavenumber * q);
-        (self.sin * s + self.cos * c) * (1.0 + self.load_gain * load.abs())
+    /// The integrator's form of `sin·sin(k·q) + cos·cos(k·q)` (without the load growth): a
+    /// precomputed [`Harmonic`](crate::fastmath::Harmonic).
+    pub fn harmonic(&self) -> crate::fastmath::Harmonic {
+        crate::fastmath::Harmonic::new(self.sin, self.cos, self.wavenumber)
     }
 
     /// Whether the torque is identically zero.

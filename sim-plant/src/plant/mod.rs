@@ -26,8 +26,10 @@
 //! Stability needs ω·h < 2 for the stiffest mode; the constructor refuses anything above
 //! ω·h = 1 and says which rate would do.
 //!
-//! The state (positions, velocities, stick flag, phase trackers) lives in a local `Core` for
-//! the substep loop and every law is inlined, so the loop runs out of registers.
+//! The substep loop is compiled once per structure and environment kind; the state and every
+//! loop-invariant constant live in locals and every law is inlined, so the loop runs out of
+//! registers. Position-periodic torques (cogging, ripple, gravity) are table-plus-polynomial
+//! [`Harmonic`]s built at construction; effects with zero amplitude are not evaluated.
 //!
 //! ## Determinism
 //! Pure f64 arithmetic in a fixed order plus a seeded ChaCha8 noise stream: the same model,
@@ -42,8 +44,8 @@ pub use environment::Environment;
 pub use sensors::{SensorConfig, Sensors};
 pub use state::TrueState;
 
-use crate::effects::{compliance, EffectLaws, Node};
-use crate::fastmath::Rotor;
+use crate::effects::{compliance, EffectLaws, Node, PeriodicTorque};
+use crate::fastmath::{self, Harmonic};
 use crate::model::{Model, PlantKind};
 
 /// Options that are not part of the joint model: integration, noise seed, set-up.
@@ -142,6 +144,8 @@ pub struct Plant {
     delay_pos: usize,
     sensors: sensors::SensorModel,
     last: TrueState,
+    /// The periodic torques of `laws`, precomputed for the substep loop.
+    periodic: Periodics,
 }
 
 impl Plant {
@@ -211,6 +215,7 @@ impl Plant {
             velocity_resolution: model.sensors.velocity_resolution.value,
             delay: model.sensors.delay.value.round() as usize,
         };
+        let periodic = Periodics::new(&laws, n);
         let plant = Plant {
             model: model.clone(),
             mech,
@@ -225,6 +230,7 @@ impl Plant {
             delay_pos: 0,
             sensors: sensors::SensorModel::new(cfg, opts.seed),
             last: TrueState::default(),
+            periodic,
         };
         plant.check_step_size(&opts.environment)?;
         Ok(plant)
@@ -367,46 +373,19 @@ impl Plant {
 
     /// Advance without reading the sensors (no noise drawn).
     pub fn advance(&mut self, torque_cmd: f64, dt: f64) {
-        let count = ((dt * self.rate).round() as usize).max(1);
+        let count = (fastmath::round(dt * self.rate) as usize).max(1);
         let h = dt / count as f64;
         let inv_h = count as f64 / dt;
         let m = self.mech;
         let cmd = if torque_cmd.is_nan() { 0.0 } else { torque_cmd };
         let sat = cmd.clamp(-m.max_torque, m.max_torque);
         let u_cmd = m.n * sat;
-        let mut out = Substep::default();
-        // The state lives in a local for the loop so it can stay in registers.
-        let mut core = Core {
-            x: self.x,
-            v: self.v,
-            stuck: self.stuck,
-            ripple: Rotor::new(),
-            cogging: Rotor::new(),
-            gravity: Rotor::new(),
+        // One loop per structure and environment kind, so the substep has no dispatch left.
+        let out = match m.kind {
+            PlantKind::Rigid => self.substeps_in_env::<RIGID>(u_cmd, count, h, inv_h),
+            PlantKind::TwoMass => self.substeps_in_env::<TWO_MASS>(u_cmd, count, h, inv_h),
+            PlantKind::ThreeMass => self.substeps_in_env::<THREE_MASS>(u_cmd, count, h, inv_h),
         };
-        // Leapfrog form of drift–kick–drift: the second half-drift of one substep and the first
-        // half-drift of the next are one full drift, so positions are synchronised with
-        // velocities only at the ends of the step.
-        let mut before = self.begin_substeps(&mut core, h);
-        let memoryless = self.delay_line.is_empty();
-        // The actuator chain is memoryless without a delay: shape once per step.
-        let shaped = self.laws.actuator.shape(u_cmd);
-        for k in 0..count {
-            let u = if memoryless {
-                shaped
-            } else {
-                self.actuate(u_cmd)
-            };
-            out = self.kick(&mut core, u, h, inv_h, before);
-            before = core.v[self.friction_node_index()];
-            let d = if k + 1 == count { 0.5 * h } else { h };
-            for i in 0..3 {
-                core.x[i] += d * core.v[i];
-            }
-        }
-        self.x = core.x;
-        self.v = core.v;
-        self.stuck = core.stuck;
         self.last = self.true_state_now(
             torque_cmd,
             out.motor_accel,
@@ -422,7 +401,7 @@ impl Plant {
 
     /// Read the sensors for the current state (draws noise, advances the delay line).
     pub fn read_sensors(&mut self) -> Sensors {
-        let s = self.last;
+        let s = &self.last;
         self.sensors.sample(
             s.motor_angle,
             s.motor_velocity,
@@ -431,189 +410,234 @@ impl Plant {
         )
     }
 
-    /// Actuator chain for one substep: delay line, then the shaping effects.
+    /// [`Plant::substeps`] for the current environment's kind.
     #[inline(always)]
-    fn actuate(&mut self, u: f64) -> f64 {
-        let delayed = if self.delay_line.is_empty() {
-            u
-        } else {
-            let old = self.delay_line[self.delay_pos];
-            self.delay_line[self.delay_pos] = u;
-            self.delay_pos = (self.delay_pos + 1) % self.delay_line.len();
-            old
-        };
-        self.laws.actuator.shape(delayed)
-    }
-
-    /// Resisting torques at the output that are not friction or spring: offset, ripple,
-    /// gravity, additive torques (the rigid plant's output is its only node).
-    #[inline(always)]
-    fn output_load(&self, c: &mut Core, q: f64, v: f64, load: f64) -> f64 {
-        let l = &self.laws;
-        let mut r = 0.0;
-        if !l.additive.is_empty() {
-            r += l.additive_on(Node::Output, q, v, load);
-        }
-        if !l.ripple.is_zero() {
-            r += l.ripple.torque_tracked(&mut c.ripple, q, load);
-        }
-        if !l.gravity.is_zero() {
-            r += l.gravity.torque_tracked(&mut c.gravity, q, 0.0);
-        }
-        r
-    }
-
-    /// Resisting torques on the motor node: cogging at output-referred position `xm` (motor
-    /// angle = N·xm) and additive torques.
-    #[inline(always)]
-    fn motor_load(&self, c: &mut Core, xm: f64, vm: f64, load: f64) -> f64 {
-        let l = &self.laws;
-        let mut r = 0.0;
-        if !l.cogging.is_zero() {
-            r += l
-                .cogging
-                .torque_tracked(&mut c.cogging, xm * self.mech.n, 0.0);
-        }
-        if !l.additive.is_empty() {
-            r += l.additive_on(Node::Motor, xm, vm, load);
-        }
-        r
-    }
-
-    /// Update the friction node (index `i`, inertia `inertia`) given its non-friction,
-    /// non-environment torque `tau` and its velocity at the start of the substep; returns
-    /// (friction, environment torque on the node, acceleration).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn friction_node(
-        &self,
-        c: &mut Core,
-        i: usize,
-        inertia: f64,
-        inv_inertia: f64,
-        tau: f64,
+    fn substeps_in_env<const KIND: u8>(
+        &mut self,
+        u_cmd: f64,
+        count: usize,
         h: f64,
         inv_h: f64,
-        v_old: f64,
-    ) -> (f64, f64, f64) {
-        if let Some(vp) = self.env.prescribed_velocity() {
-            // Kinematic: the environment imposes the motion and carries the reaction.
-            let f = if vp == 0.0 {
-                0.0
-            } else {
-                self.laws.friction.sliding(vp)
-            };
-            let a = (vp - v_old) * inv_h;
-            c.v[i] = vp;
-            c.stuck = vp == 0.0;
-            let env = inertia * a - tau + f;
-            return (f, env, a);
-        }
-        let env = self.env.torque(c.x[i], v_old);
-        let (vn, f) = friction::advance(
-            v_old,
-            &mut c.stuck,
-            tau + env,
-            h * inv_inertia,
-            &self.laws.friction,
-            self.dry,
-        );
-        c.v[i] = vn;
-        (f, env, (vn - v_old) * inv_h)
-    }
-
-    /// Index of the friction (and environment) node: the output, or the only node.
-    #[inline(always)]
-    fn friction_node_index(&self) -> usize {
-        if self.mech.kind == PlantKind::Rigid {
-            0
-        } else {
-            2
+    ) -> Substep {
+        match self.env {
+            Environment::Free => self.substeps::<KIND, FREE>(u_cmd, count, h, inv_h),
+            Environment::Spring { .. } => self.substeps::<KIND, SPRING>(u_cmd, count, h, inv_h),
+            Environment::Torque { .. } => self.substeps::<KIND, TORQUE>(u_cmd, count, h, inv_h),
+            Environment::Wall { .. } => self.substeps::<KIND, WALL>(u_cmd, count, h, inv_h),
+            Environment::Locked | Environment::Crank { .. } => {
+                self.substeps::<KIND, KINEMATIC>(u_cmd, count, h, inv_h)
+            }
         }
     }
 
-    /// Start of a step: impose a kinematic environment's velocity and drift half a substep.
-    /// Returns the friction node's velocity before the imposition (for the reaction's I·a).
+    /// `count` substeps of length `h` with the (output-referred, saturated) command `u_cmd`
+    /// held; returns the last substep's quantities. `KIND` is the structure ([`RIGID`],
+    /// [`TWO_MASS`], [`THREE_MASS`]) and `ENV` the environment's kind ([`FREE`], …): both are
+    /// compile-time constants, so each combination is its own loop without dispatch.
     ///
-    /// A kinematic environment (lock, crank) imposes the output velocity for the whole step,
-    /// every drift included, so a locked output does not creep and a crank's angle is exactly
-    /// speed·t.
-    #[inline(always)]
-    fn begin_substeps(&self, c: &mut Core, h: f64) -> f64 {
-        let node = self.friction_node_index();
-        let before = c.v[node];
-        if let Some(vp) = self.env.prescribed_velocity() {
-            c.v[node] = vp;
+    /// Leapfrog form of drift–kick–drift: the second half-drift of one substep and the first
+    /// half-drift of the next are one full drift, so positions are synchronised with velocities
+    /// only at the ends of the step. A kinematic environment (lock, crank) imposes the output
+    /// velocity for the whole step, every drift included, so a locked output does not creep and
+    /// a crank's angle is exactly speed·t.
+    ///
+    /// Everything loop-invariant is copied into locals first and every law is inlined, so the
+    /// state and the constants live in registers; absent effects cost a predictable branch.
+    #[inline(never)]
+    fn substeps<const KIND: u8, const ENV: u8>(
+        &mut self,
+        u_cmd: f64,
+        count: usize,
+        h: f64,
+        inv_h: f64,
+    ) -> Substep {
+        let m = self.mech;
+        let laws = &self.laws;
+        let fl = laws.friction;
+        let spring = laws.spring;
+        let has_additive = !laws.additive.is_empty();
+        let dry = self.dry;
+        let env = self.env;
+        let (env_k, env_d, env_rest, env_t, vp) = match env {
+            Environment::Spring {
+                stiffness,
+                damping,
+                rest,
+            } => (stiffness, damping, rest, 0.0, 0.0),
+            Environment::Torque { torque } => (0.0, 0.0, 0.0, torque, 0.0),
+            Environment::Crank { speed } => (0.0, 0.0, 0.0, 0.0, speed),
+            _ => (0.0, 0.0, 0.0, 0.0, 0.0),
+        };
+        let cogging = self.periodic.cogging.as_ref();
+        let ripple = self.periodic.ripple.as_ref();
+        let ripple_gain = self.periodic.ripple_load_gain;
+        let gravity = self.periodic.gravity.as_ref();
+        let delay = &mut self.delay_line[..];
+        let mut delay_pos = self.delay_pos;
+        // The friction (and environment) node: the output, or the only node.
+        let node = if KIND == RIGID { 0 } else { 2 };
+        let (inertia, inv_inertia) = if KIND == RIGID {
+            (m.i1, m.inv_i1)
+        } else {
+            (m.i2, m.inv_i2)
+        };
+        let h_over_i = h * inv_inertia;
+        // h/I folded into one factor per node (a reassociation of h·(τ/I)).
+        let h_over_i1 = h * m.inv_i1;
+        let h_over_im = h * m.inv_im;
+        let mut x = self.x;
+        let mut v = self.v;
+        let mut stuck = self.stuck;
+
+        // Resisting torques on the motor node: cogging at output-referred position `xm` (the
+        // harmonic is scaled to the motor angle N·xm) and additive torques.
+        let motor_load = |xm: f64, vm: f64, load: f64| -> f64 {
+            let mut r = 0.0;
+            if let Some(c) = cogging {
+                r += c.eval(xm);
+            }
+            if has_additive {
+                r += laws.additive_on(Node::Motor, xm, vm, load);
+            }
+            r
+        };
+        // Resisting torques at the output that are not friction or spring: additive torques,
+        // ripple, gravity (the rigid plant's output is its only node).
+        let output_load = |q: f64, vq: f64, load: f64| -> f64 {
+            let mut r = 0.0;
+            if has_additive {
+                r += laws.additive_on(Node::Output, q, vq, load);
+            }
+            if let Some(p) = ripple {
+                r += p.eval(q) * (1.0 + ripple_gain * load.abs());
+            }
+            if let Some(g) = gravity {
+                r += g.eval(q);
+            }
+            r
+        };
+        // The friction node at position `q` with velocity `v_old` at the start of the substep
+        // and non-friction, non-environment torque `drive − load` (the position-dependent
+        // `load` last, which keeps it off the front of the dependency chain): (new velocity,
+        // friction, environment torque on the node, acceleration).
+        let friction_node = |q: f64, v_old: f64, drive: f64, load: f64, stuck: &mut bool| {
+            if ENV == KINEMATIC {
+                let tau = drive - load;
+                // The environment imposes the motion and carries the reaction.
+                let f = if vp == 0.0 { 0.0 } else { fl.sliding(vp) };
+                let a = (vp - v_old) * inv_h;
+                *stuck = vp == 0.0;
+                return (vp, f, inertia * a - tau + f, a);
+            }
+            let e = match ENV {
+                FREE => 0.0,
+                SPRING => -env_k * (q - env_rest) - env_d * v_old,
+                TORQUE => env_t,
+                _ => env.torque(q, v_old),
+            };
+            let (vn, f) = friction::advance(v_old, stuck, drive + e, load, h_over_i, &fl, dry);
+            (vn, f, e, (vn - v_old) * inv_h)
+        };
+
+        // Start of the step: impose a kinematic environment's velocity (keeping the velocity
+        // before, for the reaction's I·a) and drift half a substep.
+        let mut before = v[node];
+        if ENV == KINEMATIC {
+            v[node] = vp;
             if node == 0 {
-                c.v = [vp; 3];
+                v = [vp; 3];
             }
         }
         for i in 0..3 {
-            c.x[i] += 0.5 * h * c.v[i];
+            x[i] += 0.5 * h * v[i];
         }
-        before
-    }
-
-    /// Forces at the current (mid-step) positions, full velocity update.
-    #[inline(always)]
-    fn kick(&self, c: &mut Core, u: f64, h: f64, inv_h: f64, before: f64) -> Substep {
-        let m = self.mech;
-        match m.kind {
-            PlantKind::Rigid => {
-                let x = c.x[0];
-                let v = c.v[0];
-                let tau = u - m.b1 * v - self.output_load(c, x, v, u) - self.motor_load(c, x, v, u);
-                let (f, env, a) = self.friction_node(c, 0, m.i1, m.inv_i1, tau, h, inv_h, before);
-                c.v[1] = c.v[0];
-                c.v[2] = c.v[0];
-                Substep {
-                    applied: u,
-                    motor_accel: a,
-                    transmission: u,
-                    friction: f,
-                    env,
-                    accel: a,
+        // The actuator chain is memoryless without a delay: shape once per step.
+        let shaped = laws.actuator.shape(u_cmd);
+        let mut out = Substep::default();
+        for k in 0..count {
+            let u = if delay.is_empty() {
+                shaped
+            } else {
+                let old = delay[delay_pos];
+                delay[delay_pos] = u_cmd;
+                delay_pos += 1;
+                if delay_pos == delay.len() {
+                    delay_pos = 0;
                 }
+                laws.actuator.shape(old)
+            };
+            // Forces at the current (mid-step) positions, full velocity update.
+            let sub = match KIND {
+                RIGID => {
+                    let [q, _, _] = x;
+                    let vq = v[0];
+                    let load = output_load(q, vq, u) + motor_load(q, vq, u);
+                    let (vn, f, e, a) = friction_node(q, before, u - m.b1 * vq, load, &mut stuck);
+                    v = [vn; 3];
+                    Substep {
+                        applied: u,
+                        motor_accel: a,
+                        transmission: u,
+                        friction: f,
+                        env: e,
+                        accel: a,
+                    }
+                }
+                TWO_MASS => {
+                    let [x0, _, x2] = x;
+                    let [v0, _, v2] = v;
+                    let tt = spring.torque(x0 - x2, v0 - v2);
+                    let net0 = u - tt - m.b1 * v0 - motor_load(x0, v0, tt);
+                    let a0 = net0 * m.inv_i1;
+                    let v0n = v0 + net0 * h_over_i1;
+                    let load = output_load(x2, v2, tt);
+                    let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
+                    v = [v0n, v0n, vn];
+                    Substep {
+                        applied: u,
+                        motor_accel: a0,
+                        transmission: tt,
+                        friction: f,
+                        env: e,
+                        accel: a,
+                    }
+                }
+                _ => {
+                    let [x0, x1, x2] = x;
+                    let [v0, v1, v2] = v;
+                    let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
+                    let tt = spring.torque(x1 - x2, v1 - v2);
+                    let net0 = u - ts - m.b1 * v0 - motor_load(x0, v0, ts);
+                    let a0 = net0 * m.inv_i1;
+                    let net1 = ts - tt;
+                    let load = output_load(x2, v2, tt);
+                    let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
+                    v = [v0 + net0 * h_over_i1, v1 + net1 * h_over_im, vn];
+                    Substep {
+                        applied: u,
+                        motor_accel: a0,
+                        transmission: tt,
+                        friction: f,
+                        env: e,
+                        accel: a,
+                    }
+                }
+            };
+            // Only the last substep's quantities are kept (kept out of registers meanwhile).
+            if k + 1 == count {
+                out = sub;
             }
-            PlantKind::TwoMass => {
-                let [x0, _, x2] = c.x;
-                let [v0, _, v2] = c.v;
-                let tt = self.laws.spring.torque(x0 - x2, v0 - v2);
-                let a0 = (u - tt - m.b1 * v0 - self.motor_load(c, x0, v0, tt)) * m.inv_i1;
-                c.v[0] = v0 + h * a0;
-                let tau = tt - m.b2 * v2 - self.output_load(c, x2, v2, tt);
-                let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
-                c.v[1] = c.v[0];
-                Substep {
-                    applied: u,
-                    motor_accel: a0,
-                    transmission: tt,
-                    friction: f,
-                    env,
-                    accel: a,
-                }
-            }
-            PlantKind::ThreeMass => {
-                let [x0, x1, x2] = c.x;
-                let [v0, v1, v2] = c.v;
-                let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
-                let tt = self.laws.spring.torque(x1 - x2, v1 - v2);
-                let a0 = (u - ts - m.b1 * v0 - self.motor_load(c, x0, v0, ts)) * m.inv_i1;
-                let a1 = (ts - tt) * m.inv_im;
-                c.v[0] = v0 + h * a0;
-                c.v[1] = v1 + h * a1;
-                let tau = tt - m.b2 * v2 - self.output_load(c, x2, v2, tt);
-                let (f, env, a) = self.friction_node(c, 2, m.i2, m.inv_i2, tau, h, inv_h, before);
-                Substep {
-                    applied: u,
-                    motor_accel: a0,
-                    transmission: tt,
-                    friction: f,
-                    env,
-                    accel: a,
-                }
+            before = v[node];
+            let d = if k + 1 == count { 0.5 * h } else { h };
+            for i in 0..3 {
+                x[i] += d * v[i];
             }
         }
+        self.x = x;
+        self.v = v;
+        self.stuck = stuck;
+        self.delay_pos = delay_pos;
+        out
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -655,16 +679,42 @@ impl Plant {
     }
 }
 
-/// The integrated state, held in a local during the substep loop.
-#[derive(Clone, Copy, Debug)]
-struct Core {
-    x: [f64; 3],
-    v: [f64; 3],
-    stuck: bool,
-    /// Phase trackers of the ripple, cogging and gravity angles.
-    ripple: Rotor,
-    cogging: Rotor,
-    gravity: Rotor,
+/// [`Plant::substeps`]' structure kinds.
+const RIGID: u8 = 0;
+const TWO_MASS: u8 = 1;
+const THREE_MASS: u8 = 2;
+/// [`Plant::substeps`]' environment kinds.
+const FREE: u8 = 0;
+const SPRING: u8 = 1;
+const TORQUE: u8 = 2;
+const WALL: u8 = 3;
+const KINEMATIC: u8 = 4;
+
+/// The position-periodic torques in the integrator's form; `None` where the amplitude is
+/// zero, so an absent effect costs nothing.
+#[derive(Clone, Debug)]
+struct Periodics {
+    /// Motor cogging as a function of the output-referred motor node position (k·N).
+    cogging: Option<Harmonic>,
+    /// Transmission ripple at its zero-load amplitude.
+    ripple: Option<Harmonic>,
+    /// Ripple amplitude growth per N·m of transmitted torque.
+    ripple_load_gain: f64,
+    /// Gravity.
+    gravity: Option<Harmonic>,
+}
+
+impl Periodics {
+    fn new(laws: &EffectLaws, n: f64) -> Self {
+        let make =
+            |p: &PeriodicTorque, k: f64| (!p.is_zero()).then(|| Harmonic::new(p.sin, p.cos, k));
+        Self {
+            cogging: make(&laws.cogging, laws.cogging.wavenumber * n),
+            ripple: make(&laws.ripple, laws.ripple.wavenumber),
+            ripple_load_gain: laws.ripple.load_gain,
+            gravity: make(&laws.gravity, laws.gravity.wavenumber),
+        }
+    }
 }
 
 /// Quantities of the last substep, for the true-state record.

@@ -117,7 +117,7 @@ impl SensorModel {
         let now = Sensors {
             motor_counts: encoder_counts(motor_angle, c.motor_cpr),
             output_counts: (c.output_cpr > 0.0).then(|| encoder_counts(output_angle, c.output_cpr)),
-            motor_velocity: (motor_velocity / c.velocity_resolution).round()
+            motor_velocity: crate::fastmath::round(motor_velocity / c.velocity_resolution)
                 * c.velocity_resolution,
             torque: f64::from(torque_counts) * c.torque_resolution,
             torque_counts,
