@@ -278,7 +278,10 @@ pub fn run_card(
                 }
             }
             Err(e) => {
-                // The bus itself failed: the card can no longer be commanded; it stops.
+                // The bus itself failed: the card can no longer hear its sensors or its
+                // supervisor. Safe state first (a real card would also cut its power stage
+                // here through `power_stage`), then report.
+                card.on_bus_fault(&crate::bus::BusFault::bus_off());
                 return Err(anyhow!("card bus failed: {e}"));
             }
         }
