@@ -238,6 +238,10 @@ pub fn run_plant(
     Ok(st)
 }
 
+/// In lockstep, how long the plant may stay silent (wall time) before the card's sensor
+/// timeout starts counting.
+pub const LOCKSTEP_DEAD_PLANT: Duration = Duration::from_millis(500);
+
 /// The card loop: runs until `stop`. In lockstep the card's time is its tick count; when no
 /// sensor frame arrives for a while (a dead plant), wall time since the last one is added so
 /// the sensor timeout still fires.
@@ -263,7 +267,11 @@ pub fn run_card(
             }
             Ok(None) => {
                 let now = if lockstep {
-                    card.now_us() + last_rx.elapsed().as_micros() as u64
+                    // Lockstep has no wall clock: scheduling gaps of a few ms between the
+                    // processes are normal (more so under emulation), so only a plant silent
+                    // for longer than LOCKSTEP_DEAD_PLANT counts, and from then on time runs.
+                    let gap = last_rx.elapsed().saturating_sub(LOCKSTEP_DEAD_PLANT);
+                    card.now_us() + gap.as_micros() as u64
                 } else {
                     wall_us
                 };
