@@ -97,7 +97,8 @@ pub struct PlantLoop {
     /// card's watchdog, which counts ticks.
     pub supervisor_window: u64,
     /// Wall time after which a silent supervisor is taken as gone (pacing stops, so the
-    /// card's watchdog can do its job).
+    /// card's watchdog can do its job). Must stay below [`LOCKSTEP_DEAD_PLANT`], or the card
+    /// would take the plant's wait for a dead supervisor as a dead plant.
     pub supervisor_grace: Duration,
 }
 
@@ -110,7 +111,7 @@ impl PlantLoop {
             },
             ticks,
             supervisor_window: 100,
-            supervisor_grace: Duration::from_millis(1500),
+            supervisor_grace: Duration::from_millis(1000),
         }
     }
 }
@@ -240,7 +241,7 @@ pub fn run_plant(
 
 /// In lockstep, how long the plant may stay silent (wall time) before the card's sensor
 /// timeout starts counting.
-pub const LOCKSTEP_DEAD_PLANT: Duration = Duration::from_millis(500);
+pub const LOCKSTEP_DEAD_PLANT: Duration = Duration::from_millis(2000);
 
 /// The card loop: runs until `stop`. In lockstep the card's time is its tick count; when no
 /// sensor frame arrives for a while (a dead plant), wall time since the last one is added so
