@@ -19,7 +19,12 @@ OUT=${1:-target/vm-guest}
 shift || true
 TRIPLE=x86_64-unknown-linux-gnu
 export CARGO_TARGET_DIR=${JOINTLAB_VM_TARGET_DIR:-target/vm-static}
-export RUSTFLAGS="-C target-feature=+crt-static"
+# plotters' font support links fontconfig/freetype statically; their own dependencies must
+# follow them on the link line (static archives do not carry their dependencies). Debian's
+# static archives are not position-independent, so the executable is a classic static one
+# (relocation-model=static), and `-Bstatic` keeps the linker from resolving these -l flags
+# against shared libraries (which would crash a static binary at start-up).
+export RUSTFLAGS="-C target-feature=+crt-static -C relocation-model=static -C link-arg=-Wl,-Bstatic -C link-arg=-lpng16 -C link-arg=-lz -C link-arg=-lbz2 -C link-arg=-lbrotlidec -C link-arg=-lbrotlicommon -C link-arg=-lexpat"
 export CARGO_TERM_COLOR=${CARGO_TERM_COLOR:-never}
 
 rustup target list --installed 2>/dev/null | grep -qx "$TRIPLE" || rustup target add "$TRIPLE"

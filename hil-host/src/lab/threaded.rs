@@ -97,7 +97,8 @@ pub struct PlantLoop {
     /// card's watchdog, which counts ticks.
     pub supervisor_window: u64,
     /// Wall time after which a silent supervisor is taken as gone (pacing stops, so the
-    /// card's watchdog can do its job).
+    /// card's watchdog can do its job). Must stay below [`LOCKSTEP_DEAD_PLANT`], or the card
+    /// would take the plant's wait for a dead supervisor as a dead plant.
     pub supervisor_grace: Duration,
 }
 
@@ -110,7 +111,7 @@ impl PlantLoop {
             },
             ticks,
             supervisor_window: 100,
-            supervisor_grace: Duration::from_millis(1500),
+            supervisor_grace: Duration::from_millis(1000),
         }
     }
 }
@@ -238,6 +239,10 @@ pub fn run_plant(
     Ok(st)
 }
 
+/// In lockstep, how long the plant may stay silent (wall time) before the card's sensor
+/// timeout starts counting.
+pub const LOCKSTEP_DEAD_PLANT: Duration = Duration::from_millis(2000);
+
 /// The card loop: runs until `stop`. In lockstep the card's time is its tick count; when no
 /// sensor frame arrives for a while (a dead plant), wall time since the last one is added so
 /// the sensor timeout still fires.
@@ -263,7 +268,11 @@ pub fn run_card(
             }
             Ok(None) => {
                 let now = if lockstep {
-                    card.now_us() + last_rx.elapsed().as_micros() as u64
+                    // Lockstep has no wall clock: scheduling gaps of a few ms between the
+                    // processes are normal (more so under emulation), so only a plant silent
+                    // for longer than LOCKSTEP_DEAD_PLANT counts, and from then on time runs.
+                    let gap = last_rx.elapsed().saturating_sub(LOCKSTEP_DEAD_PLANT);
+                    card.now_us() + gap.as_micros() as u64
                 } else {
                     wall_us
                 };
@@ -278,7 +287,10 @@ pub fn run_card(
                 }
             }
             Err(e) => {
-                // The bus itself failed: the card can no longer be commanded; it stops.
+                // The bus itself failed: the card can no longer hear its sensors or its
+                // supervisor. Safe state first (a real card would also cut its power stage
+                // here through `power_stage`), then report.
+                card.on_bus_fault(&crate::bus::BusFault::bus_off());
                 return Err(anyhow!("card bus failed: {e}"));
             }
         }
