@@ -86,3 +86,35 @@ fn bad_input_gets_a_clear_error() {
         "{e}"
     );
 }
+
+#[test]
+fn run_over_threads_in_real_time_reports_jitter() {
+    let out = hil()
+        .args([
+            "run",
+            "--bus",
+            "inproc",
+            "--scenario",
+            "step",
+            "--preset",
+            "harmonic-drive-60",
+            "--realtime",
+            "--seconds",
+            "0.5",
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("real time"), "{text}");
+    assert!(
+        text.contains("tick lateness: p50"),
+        "jitter figures: {text}"
+    );
+    assert!(text.contains("missing actuator frames"), "{text}");
+}
