@@ -3,3 +3,6 @@
 //! Bus transports (SocketCAN and an in-process bus, both behind `embedded-can`), the card node
 //! (runs the `controller` card on the PC), the plant node (runs a `sim-plant` model), the
 //! supervisor, recordings, and the model-vs-measurement workbench (`compare`/`diagnose`/`fit`).
+
+pub mod cli;
+pub mod workbench;

@@ -1,4 +1,4 @@
-//! `hil-host` command-line interface.
-fn main() {
-    println!("hil-host: see --help");
+//! `hil-host` command-line interface (see `hil_host::cli`).
+fn main() -> std::process::ExitCode {
+    hil_host::cli::main()
 }
