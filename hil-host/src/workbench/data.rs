@@ -269,3 +269,50 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         columns: cols.clone(),
     })
 }
+
+/// Load named columns as raw numbers (no unit conversion), with the same error checks.
+/// For extra signals a command needs beside input/output (a reference, a pulse train).
+pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
+    let file = path.to_path_buf();
+    let text = std::fs::read(path).map_err(|source| DataError::Io { file: file.clone(), source })?;
+    let mut rdr = csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).from_reader(text.as_slice());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| DataError::Malformed { file: file.clone(), line: 1, msg: e.to_string() })?
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header.iter().position(|h| h == n).ok_or_else(|| DataError::MissingColumn {
+                file: file.clone(),
+                column: (*n).into(),
+                have: header.join(", "),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: e.position().map(|p| p.line()).unwrap_or(0),
+            msg: e.to_string(),
+        })?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        for (k, &i) in idx.iter().enumerate() {
+            let s = rec.get(i).unwrap_or("");
+            let v: f64 = s.parse().map_err(|_| DataError::NotNumeric {
+                file: file.clone(),
+                line,
+                column: names[k].into(),
+                cell: s.into(),
+            })?;
+            if !v.is_finite() {
+                return Err(DataError::NotFinite { file: file.clone(), line, column: names[k].into(), value: v });
+            }
+            out[k].push(v);
+        }
+    }
+    Ok(out)
+}

@@ -13,6 +13,7 @@
 //! Effect features come from `sim_plant::effects::fingerprint` only; nothing here knows what
 //! Coulomb friction looks like.
 
+pub mod closed_loop;
 pub mod data;
 pub mod diagnose;
 pub mod diff;

@@ -206,7 +206,7 @@ pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
 /// Force the model applies besides inertia at one state (for simulation). History-dependent
 /// fingerprints (backlash gap state, compliance derivatives, delay) are evaluated on a
 /// single sample and so contribute their memoryless part only.
-fn effect_force(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -> f64 {
+pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -> f64 {
     let (xs, vs, as_, us) = ([x], [v], [a], [u]);
     let t = Trajectory { dt, input: &us, position: &xs, velocity: &vs, acceleration: &as_ };
     let mut f = 0.0;
@@ -233,7 +233,7 @@ pub fn simulate(model: &Model, time: &[f64], input: &[f64], x0: f64, v0: f64) ->
         let dt = time[k + 1] - time[k];
         let h = dt / SUB as f64;
         let u = input[k];
-        let acc = |x: f64, v: f64, a: f64| (u - effect_force(model, dt, x, v, a, u)) / m;
+        let acc = |x: f64, v: f64, a: f64| (u - effect_force_at(model, dt, x, v, a, u)) / m;
         for _ in 0..SUB {
             let k1v = acc(x, v, a);
             let k1x = v;
