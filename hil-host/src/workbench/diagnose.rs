@@ -249,7 +249,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let baseline = Baseline {
         fit_percent: metrics::fit_percent(&p.input, &pred),
         rms: (rss / e.len() as f64).sqrt(),
-        noise_floor_rms: metrics::noise_floor(e),
+        noise_floor_rms: p.noise_floor,
         ljung_box_p: stats::ljung_box(e, 20).1,
         model: model.name.clone(),
     };
@@ -278,14 +278,27 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             cols.extend(z);
             let f = fit::least_squares(&cols, &d.y).expect("fit");
             let idx: Vec<usize> = (x0.len()..x0.len() + q).collect();
-            let (stat, p_raw) = f.wald(&idx);
+            let (stat, mut p_raw) = f.wald(&idx);
+            let mut err = s.err;
+            // One-sided where physics fixes the sign of the (first) amplitude: half the
+            // two-sided p when the estimate has the admissible sign, otherwise no evidence.
+            if let Some(sign) = s.kind.admissible_sign() {
+                if f.theta[x0.len()] * sign > 0.0 {
+                    if q == 1 {
+                        p_raw *= 0.5;
+                    }
+                } else {
+                    p_raw = 1.0;
+                    err = 0.0;
+                }
+            }
             Candidate {
                 effect: s.kind.name().into(),
                 rank: 0,
                 statistic: stat,
                 p_value: (p_raw * s.grid as f64).min(1.0),
                 p_raw,
-                err: s.err,
+                err,
                 df: q,
                 grid: s.grid,
                 significant: false,

@@ -79,6 +79,14 @@ pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
     buf[pad..pad + n].to_vec()
 }
 
+/// RMS gain of the zero-phase filter for white noise (√Σh² of its impulse response).
+pub fn noise_gain(fc: f64, fs: f64) -> f64 {
+    let n = ((40.0 * fs / fc) as usize).clamp(64, 1 << 16);
+    let mut x = vec![0.0; n];
+    x[n / 2] = 1.0;
+    filtfilt(&x, fc, fs).iter().map(|h| h * h).sum::<f64>().sqrt()
+}
+
 /// Smoothed position, velocity and acceleration.
 #[derive(Debug, Clone)]
 pub struct Derivatives {

@@ -39,6 +39,9 @@ impl LsFit {
             return (0.0, 1.0);
         }
         let v = DMatrix::from_fn(q, q, |a, b| self.cov[(idx[a], idx[b])]);
+        if v.iter().any(|x| !x.is_finite()) {
+            return (0.0, 1.0);
+        }
         let g = DVector::from_iterator(q, idx.iter().map(|&i| self.theta[i]));
         let w = match v.clone().try_inverse() {
             Some(vi) => (g.transpose() * vi * &g)[(0, 0)],
@@ -58,6 +61,9 @@ pub enum FitError {
     /// Not enough data for the parameters.
     #[error("{0} samples are too few for {1} parameters")]
     TooFew(usize, usize),
+    /// A regressor or the target holds NaN/inf.
+    #[error("non-finite value in the regression data")]
+    NonFinite,
 }
 
 /// Gram matrix `XᵀX` of column-major data.
@@ -78,6 +84,10 @@ pub fn gram(cols: &[Vec<f64>]) -> DMatrix<f64> {
 /// collinear or badly scaled columns (jerk next to a constant) do not blow up.
 pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
     let p = g.nrows();
+    // nalgebra's SVD does not terminate on NaN/inf input.
+    if g.iter().any(|v| !v.is_finite()) {
+        return DMatrix::from_element(p, p, f64::NAN);
+    }
     let d: Vec<f64> = (0..p).map(|i| if g[(i, i)] > 0.0 { 1.0 / g[(i, i)].sqrt() } else { 0.0 }).collect();
     let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
     let inv = gs
@@ -114,6 +124,9 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
     let p = cols.len();
     if n < p + 2 {
         return Err(FitError::TooFew(n, p));
+    }
+    if y.iter().chain(cols.iter().flatten()).any(|v| !v.is_finite()) {
+        return Err(FitError::NonFinite);
     }
     let g = gram(cols);
     let ginv = gram_inverse(&g);

@@ -193,7 +193,7 @@ pub fn compute(res: &Residual, period: Option<f64>) -> Metrics {
         rms: rms(r),
         max_abs,
         max_at_s: res.time[max_i],
-        noise_floor_rms: noise_floor(r),
+        noise_floor_rms: res.noise_floor.unwrap_or_else(|| noise_floor(r)),
         relative_error_percent: 100.0 * r.iter().map(|v| v * v).sum::<f64>().sqrt() / ynorm.max(1e-300),
         ljung_box_q: q,
         ljung_box_p: p,

@@ -77,6 +77,7 @@ fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
         EffectKind::Stribeck => Some(s.stribeck_velocity),
         EffectKind::Ripple => Some(s.ripple_period),
         EffectKind::Deadband => Some(s.deadband_width),
+        EffectKind::Delay => Some(s.delay),
         _ => None,
     }
 }
@@ -86,6 +87,7 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
         EffectKind::Stribeck => s.stribeck_velocity = v,
         EffectKind::Ripple => s.ripple_period = v,
         EffectKind::Deadband => s.deadband_width = v,
+        EffectKind::Delay => s.delay = v,
         _ => {}
     }
 }

@@ -42,8 +42,18 @@ impl Mode {
 pub struct Prepared {
     /// Time.
     pub time: Vec<f64>,
-    /// Measured input (SI force/torque).
+    /// Measured input (SI force/torque), low-passed by the differentiator's zero-phase filter
+    /// ("parallel filtering", as in IDIM): both sides of the inverse-dynamics equation then
+    /// see the same bandwidth. Without it the input's content above the cut-off — sensor noise,
+    /// but also real torque the feedback puts there (PD on a quantised encoder) — has no
+    /// counterpart in the smoothed acceleration and ends up as structured residual that
+    /// broadband fingerprints (compliance, delay) happily "explain".
     pub input: Vec<f64>,
+    /// Measured input as recorded (SI).
+    pub raw_input: Vec<f64>,
+    /// White-noise RMS of the raw input (second-difference estimate) times the filter's noise
+    /// gain: the RMS a perfect model would leave in the equation-error residual.
+    pub noise_floor: f64,
     /// Measured (raw) position.
     pub raw_position: Vec<f64>,
     /// Smoothed position.
@@ -56,6 +66,8 @@ pub struct Prepared {
     pub dt: f64,
     /// Differentiator cut-off used [Hz].
     pub cutoff_hz: f64,
+    /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
+    pub input_instrument: Vec<f64>,
 }
 
 impl Prepared {
@@ -65,23 +77,37 @@ impl Prepared {
         let d = diff::differentiate(&rec.output, rec.dt, fc);
         let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
         let r = e..rec.len() - e;
-        Prepared {
+        let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
+        let floor = super::metrics::noise_floor(&rec.input) * diff::noise_gain(fc, 1.0 / rec.dt);
+        let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
-            input: rec.input[r.clone()].to_vec(),
+            input: uf[r.clone()].to_vec(),
+            raw_input: rec.input[r.clone()].to_vec(),
+            noise_floor: floor,
             raw_position: rec.output[r.clone()].to_vec(),
             position: d.position[r.clone()].to_vec(),
             velocity: d.velocity[r.clone()].to_vec(),
             acceleration: d.acceleration[r].to_vec(),
             dt: rec.dt,
             cutoff_hz: fc,
-        }
+            input_instrument: Vec::new(),
+        };
+        p.input_instrument = instrument(&p);
+        p
     }
 
     /// Borrow as a library trajectory.
+    ///
+    /// Its `input` is the **instrument**, not the measured input: fingerprints built from the
+    /// input (dead zone, delay, quantisation) would otherwise contain the input's measurement
+    /// noise, which is also in the target of the regression, and "explain" the residual's own
+    /// noise (errors-in-variables). The instrument is the least-squares reconstruction of the
+    /// input from motion alone (`a`, `v`, `sign v`, 1), so it is independent of input noise
+    /// while following the input's shape.
     pub fn trajectory(&self) -> Trajectory<'_> {
         Trajectory {
             dt: self.dt,
-            input: &self.input,
+            input: &self.input_instrument,
             position: &self.position,
             velocity: &self.velocity,
             acceleration: &self.acceleration,
@@ -96,6 +122,21 @@ impl Prepared {
     /// True when empty.
     pub fn is_empty(&self) -> bool {
         self.time.is_empty()
+    }
+}
+
+/// Motion-based reconstruction of the input: LS fit of the input on (a, v, sign v, 1).
+fn instrument(p: &Prepared) -> Vec<f64> {
+    let n = p.len();
+    let cols = vec![
+        p.acceleration.clone(),
+        p.velocity.clone(),
+        p.velocity.iter().map(|v| v.signum()).collect(),
+        vec![1.0; n],
+    ];
+    match fit::least_squares(&cols, &p.input) {
+        Ok(f) => p.input.iter().zip(&f.residual).map(|(u, e)| u - e).collect(),
+        Err(_) => p.input.clone(),
     }
 }
 
@@ -186,6 +227,9 @@ pub struct Residual {
     pub position: Vec<f64>,
     /// Measured input.
     pub input: Vec<f64>,
+    /// Noise floor of this residual, if known from the data (equation error: see
+    /// [`Prepared::noise_floor`]); otherwise the metrics estimate it from the residual.
+    pub noise_floor: Option<f64>,
 }
 
 /// Equation-error residual of a model on prepared data.
@@ -200,6 +244,7 @@ pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
         velocity: p.velocity.clone(),
         position: p.position.clone(),
         input: p.input.clone(),
+        noise_floor: Some(p.noise_floor),
     }
 }
 
@@ -263,5 +308,6 @@ pub fn output_error(model: &Model, p: &Prepared) -> Residual {
         velocity: p.velocity.clone(),
         position: p.position.clone(),
         input: p.input.clone(),
+        noise_floor: None,
     }
 }

@@ -104,13 +104,29 @@ impl EffectKind {
             EffectKind::Asymmetry => "direction asymmetry: residual ∝ |velocity| (B+ ≠ B−)",
             EffectKind::Stribeck => "Stribeck/stiction: residual peaks near velocity zero, decays with speed",
             EffectKind::Backlash => "backlash: load decoupled for a gap width after each reversal",
-            EffectKind::Compliance => "compliance: residual ∝ 4th/3rd derivative of motor position (resonance)",
+            EffectKind::Compliance => "compliance: residual ∝ 4th derivative of motor position (resonance)",
             EffectKind::Ripple => "transmission ripple: residual periodic in output position",
             EffectKind::Cogging => "motor cogging: residual periodic in rotor angle",
             EffectKind::Gravity => "gravity: residual ∝ sin/cos of joint angle",
             EffectKind::Deadband => "input dead zone: residual ≈ saturated input near zero command",
             EffectKind::Delay => "input delay: residual ∝ input rate",
             EffectKind::Quantization => "input quantisation: sawtooth residual in the commanded input",
+        }
+    }
+
+    /// Physically admissible sign of the *first* amplitude (in the equation-error convention
+    /// `input = … + θ·column`), or `None` if either sign is physical. Friction consumes force
+    /// (Coulomb, Stribeck, viscous > 0); a delay is positive; a dead zone and an unseen D/A
+    /// quantisation leave a residual of the command's sign; compliance seen from the motor
+    /// subtracts `J2²/K·a⁗` and backlash removes the load inertia inside the gap (< 0).
+    /// Diagnosis uses it for one-sided tests: an estimate of the wrong sign is not evidence
+    /// for the effect (it is usually errors-in-variables bias from noisy derivatives).
+    pub fn admissible_sign(self) -> Option<f64> {
+        match self {
+            EffectKind::Viscous | EffectKind::Coulomb | EffectKind::Stribeck | EffectKind::Delay => Some(1.0),
+            EffectKind::Deadband | EffectKind::Quantization => Some(1.0),
+            EffectKind::Compliance | EffectKind::Backlash => Some(-1.0),
+            _ => None,
         }
     }
 
@@ -123,12 +139,12 @@ impl EffectKind {
             EffectKind::Asymmetry => &["dfv"],
             EffectKind::Stribeck => &["fs"],
             EffectKind::Backlash => &["gap_inertia", "gap_friction"],
-            EffectKind::Compliance => &["snap_gain", "jerk_gain"],
+            EffectKind::Compliance => &["snap_gain"],
             EffectKind::Ripple => &["ripple_sin", "ripple_cos"],
             EffectKind::Cogging => &["cogging_sin", "cogging_cos"],
             EffectKind::Gravity => &["gravity_sin", "gravity_cos"],
             EffectKind::Deadband => &["deadband_gain"],
-            EffectKind::Delay => &["delay_s"],
+            EffectKind::Delay => &["delay_gain"],
             EffectKind::Quantization => &["quant_gain"],
         }
     }
@@ -166,6 +182,8 @@ pub struct Shape {
     pub deadband_width: f64,
     /// Input quantisation step.
     pub quantum: f64,
+    /// Input delay [s].
+    pub delay: f64,
     /// Velocity below which `sign(ω)` is taken as 0 (noise guard).
     pub sign_epsilon: f64,
 }
@@ -179,6 +197,7 @@ impl Default for Shape {
             backlash_width: 1e-3,
             deadband_width: 0.1,
             quantum: 0.01,
+            delay: 1e-3,
             sign_epsilon: 0.0,
         }
     }
@@ -252,10 +271,11 @@ pub fn fingerprint(kind: EffectKind, t: &Trajectory, s: &Shape) -> Vec<Vec<f64>>
             ]
         }
         EffectKind::Compliance => {
-            // Motor-side sensor, load J2 behind spring K: u ≈ (J1+J2)·a − (J2²/K)·a⁗ − (J2·B2/K)·a⃛.
+            // Motor-side sensor, load J2 behind spring K: u ≈ (J1+J2)·a − (J2²/K)·a⁗. The
+            // load-damping term −(J2·B2/K)·a⃛ is left out on purpose: a⃛ ∝ du/dt is the delay
+            // fingerprint, and a column shared by two effects makes them indistinguishable.
             let jerk = derivative(t.acceleration, t.dt);
-            let snap = derivative(&jerk, t.dt);
-            vec![snap, jerk]
+            vec![derivative(&jerk, t.dt)]
         }
         EffectKind::Ripple | EffectKind::Cogging => {
             let p = if kind == EffectKind::Ripple {
@@ -278,7 +298,19 @@ pub fn fingerprint(kind: EffectKind, t: &Trajectory, s: &Shape) -> Vec<Vec<f64>>
             let d = s.deadband_width.max(1e-300);
             vec![t.input.iter().map(|&u| (u / d).clamp(-1.0, 1.0)).collect()]
         }
-        EffectKind::Delay => vec![derivative(t.input, t.dt)],
+        EffectKind::Delay => {
+            // The plant received the logged command d late, so what it applied at t was
+            // logged at t − d: residual = logged − applied = applied(t + d) − applied(t)
+            // (`input` is the applied input; linear interpolation, the last samples reuse the
+            // end value). Amplitude 1 means "exactly this delay".
+            let n = t.input.len();
+            let lead = s.delay.max(0.0) / t.dt;
+            let (k, frac) = (lead.floor() as usize, lead - lead.floor());
+            let at = |j: usize| t.input[j.min(n - 1)];
+            vec![(0..n)
+                .map(|i| (1.0 - frac) * at(i + k) + frac * at(i + k + 1) - t.input[i])
+                .collect()]
+        }
         EffectKind::Quantization => {
             let q = s.quantum.max(1e-300);
             vec![t.input.iter().map(|&u| u - q * (u / q).round()).collect()]
@@ -333,6 +365,10 @@ pub fn shape_grid(kind: EffectKind, t: &Trajectory) -> Vec<Shape> {
         EffectKind::Quantization if umax > 0.0 => logspace(umax * 0.005, umax * 0.2, 10)
             .into_iter()
             .map(|q| Shape { quantum: q, ..base })
+            .collect(),
+        EffectKind::Delay => logspace(0.25 * t.dt, 30.0 * t.dt, 16)
+            .into_iter()
+            .map(|d| Shape { delay: d, ..base })
             .collect(),
         EffectKind::Cogging => Vec::new(),
         _ => vec![base],
