@@ -300,16 +300,21 @@ pub fn fingerprint(kind: EffectKind, t: &Trajectory, s: &Shape) -> Vec<Vec<f64>>
         }
         EffectKind::Delay => {
             // The plant received the logged command d late, so what it applied at t was
-            // logged at t − d: residual = logged − applied = applied(t + d) − applied(t)
-            // (`input` is the applied input; linear interpolation, the last samples reuse the
-            // end value). Amplitude 1 means "exactly this delay".
-            let n = t.input.len();
-            let lead = s.delay.max(0.0) / t.dt;
-            let (k, frac) = (lead.floor() as usize, lead - lead.floor());
-            let at = |j: usize| t.input[j.min(n - 1)];
-            vec![(0..n)
-                .map(|i| (1.0 - frac) * at(i + k) + frac * at(i + k + 1) - t.input[i])
-                .collect()]
+            // logged at t − d: residual = logged − applied ≈ applied(t + d) − applied(t).
+            // The column is the *centred* difference applied(t + d/2) − applied(t − d/2): the
+            // same first-order term d·u̇, but no even-derivative terms (d²/2·ü …), which would
+            // pick up the acceleration noise that `input` (a motion-based reconstruction)
+            // carries and make every noisy record look delayed. Linear interpolation; the ends
+            // reuse the end values. Amplitude 1 means "about this delay".
+            let n = t.input.len() as isize;
+            let at = |x: f64| {
+                let j = x.floor();
+                let f = x - j;
+                let g = |k: isize| t.input[k.clamp(0, n - 1) as usize];
+                (1.0 - f) * g(j as isize) + f * g(j as isize + 1)
+            };
+            let half = 0.5 * s.delay.max(0.0) / t.dt;
+            vec![(0..n).map(|i| at(i as f64 + half) - at(i as f64 - half)).collect()]
         }
         EffectKind::Quantization => {
             let q = s.quantum.max(1e-300);

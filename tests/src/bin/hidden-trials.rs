@@ -25,34 +25,64 @@ fn main() {
         return;
     }
     let t0 = Instant::now();
-    let mut all: Vec<Outcome> = Vec::new();
-    let mut unstable = 0usize;
-    for (fi, f) in Family::ALL.iter().enumerate() {
-        for i in 0..trials {
-            let seed = seed0 * 1_000_003 + (fi as u64) * 100_000 + i as u64;
-            match run(seed, &[*f], rhos[i % rhos.len()]) {
-                Some(o) => all.push(o),
-                None => unstable += 1,
-            }
-        }
-        eprintln!("{:<13} done ({:.0} s)", f.name(), t0.elapsed().as_secs_f64());
-    }
-    let mut nulls = Vec::new();
-    for i in 0..trials {
-        nulls.extend(run(seed0 * 7_000_003 + i as u64, &[], 1.0));
-    }
-    let pairs_n = trials / 2;
     let pair_fams = [
         (Family::Coulomb, Family::Offset),
         (Family::Coulomb, Family::Ripple),
         (Family::Gravity, Family::Asymmetry),
         (Family::Offset, Family::Delay),
-        (Family::Coulomb, Family::Compliance),
+        (Family::Asymmetry, Family::Ripple),
     ];
-    let mut pairs = Vec::new();
-    for i in 0..pairs_n {
+    // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
+    let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
+    for (fi, f) in Family::ALL.iter().enumerate() {
+        for i in 0..trials {
+            jobs.push((0, seed0 * 1_000_003 + (fi as u64) * 100_000 + i as u64, vec![*f], rhos[i % rhos.len()]));
+        }
+    }
+    for i in 0..trials {
+        jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
+    }
+    for i in 0..trials / 2 {
         let (a, b) = pair_fams[i % pair_fams.len()];
-        pairs.extend(run(seed0 * 9_000_011 + i as u64, &[a, b], 2.0));
+        jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
+    }
+    let workers = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<(usize, Option<Outcome>)> = std::thread::scope(|sc| {
+        let hs: Vec<_> = (0..workers)
+            .map(|_| {
+                sc.spawn(|| {
+                    let mut out = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= jobs.len() {
+                            break;
+                        }
+                        let (_, seed, fams, rho) = &jobs[k];
+                        out.push((k, run(*seed, fams, *rho)));
+                        if k % 50 == 0 {
+                            eprintln!("{k}/{} trials ({:.0} s)", jobs.len(), t0.elapsed().as_secs_f64());
+                        }
+                    }
+                    out
+                })
+            })
+            .collect();
+        hs.into_iter().flat_map(|h| h.join().expect("worker")).collect()
+    });
+    let mut all: Vec<Outcome> = Vec::new();
+    let mut nulls = Vec::new();
+    let mut pairs = Vec::new();
+    let mut unstable = 0usize;
+    let mut sorted = results;
+    sorted.sort_by_key(|(k, _)| *k);
+    for (k, o) in sorted {
+        match (jobs[k].0, o) {
+            (_, None) => unstable += 1,
+            (0, Some(o)) => all.push(o),
+            (1, Some(o)) => nulls.push(o),
+            (_, Some(o)) => pairs.push(o),
+        }
     }
 
     // Confusion matrix: rows = hidden family, columns = rank-1 candidate.
@@ -116,6 +146,7 @@ fn main() {
     for o in pairs.iter().filter(|o| !o.pair_ok()).take(10) {
         println!("  missed: hidden {:?}, added {:?}", o.families.iter().map(|f| f.name()).collect::<Vec<_>>(), o.auto_added);
     }
-    println!("unstable (skipped) single-effect trials: {unstable}");
+    println!("unstable (skipped) trials: {unstable}");
+    println!("trials per family: {trials}; workers: {workers}");
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
 }

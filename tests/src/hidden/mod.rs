@@ -460,3 +460,25 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
     }
     Some(out)
 }
+
+/// A long record for speed measurements: `repeats` estimation records of different draws
+/// (coulomb hidden at ρ ≈ 2) laid end to end, re-timed to one uniform clock.
+pub fn long_record(seed: u64, repeats: usize) -> Recording {
+    let mut out: Option<Recording> = None;
+    let mut s = seed;
+    while out.as_ref().map_or(0, |r| r.len()) < repeats * N {
+        s += 1;
+        let Some(t) = generate(s, &[Family::Coulomb], 2.0) else { continue };
+        match &mut out {
+            None => out = Some(t.est),
+            Some(r) => {
+                let off = r.output[r.len() - 1] - t.est.output[0];
+                r.input.extend(&t.est.input);
+                r.output.extend(t.est.output.iter().map(|x| x + off));
+            }
+        }
+    }
+    let mut r = out.expect("at least one record");
+    r.time = (0..r.input.len()).map(|k| k as f64 * DT).collect();
+    r
+}
