@@ -34,8 +34,11 @@ fn synth(path: &Path) {
         let t = k as f64 * dt;
         let r = 0.05 * (2.0 * std::f64::consts::PI * 0.7 * t).sin() + 0.02 * (2.0 * std::f64::consts::PI * 1.9 * t).sin();
         let u = 400.0 * (r - x) - 40.0 * v + 0.5 * rnd();
-        s.push_str(&format!("{t},{},{}\n", u + 0.01 * rnd(), 1e3 * x));
-        for _ in 0..10 {
+        for j in 0..10 {
+            if j == 5 {
+                // log the position mid-way through the hold interval of u (no ZOH half-sample lag)
+                s.push_str(&format!("{t},{},{}\n", u + 0.01 * rnd(), 1e3 * x));
+            }
             let h = dt / 10.0;
             let a = (u - b * v - fc * v.signum()) / m;
             v += h * a;

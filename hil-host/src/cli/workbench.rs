@@ -146,6 +146,9 @@ pub struct DiagnoseArgs {
     /// Smallest fraction of residual variance an effect must explain to be added.
     #[arg(long, default_value_t = 0.01)]
     pub min_err: f64,
+    /// Smallest RMS an effect must explain, in units of the noise floor.
+    #[arg(long, default_value_t = 0.25)]
+    pub min_rho: f64,
     /// Most effects `--auto` adds.
     #[arg(long, default_value_t = 6)]
     pub max_steps: usize,
@@ -234,7 +237,7 @@ fn auto_text(run: &AutoRun) -> String {
 pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     let p = a.data.prepared(&a.data.file)?;
     let mut model = a.data.model(&p)?;
-    let opts = Options { alpha: a.alpha, min_err: a.min_err, ..Options::default() };
+    let opts = Options { alpha: a.alpha, min_err: a.min_err, min_rho: a.min_rho, ..Options::default() };
     if !a.auto {
         let d = diagnose::diagnose(&model, &p, &opts);
         if a.json {

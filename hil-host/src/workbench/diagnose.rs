@@ -16,8 +16,15 @@
 //!    shape's p-value is never below the grid minimum).
 //! 3. **Family-wise control.** Holm's step-down over all candidates; a candidate is
 //!    significant when its Holm p < α **and** it explains at least `min_err` of the residual
-//!    variance (practical significance: on 10⁵ samples a 0.01 % improvement is "significant"
-//!    but not worth a model term).
+//!    variance **and** the RMS it explains is at least `min_rho` × the noise floor (practical
+//!    significance: on 10⁵ samples a 0.01 % improvement is "significant" but not worth a
+//!    model term).
+//!
+//! Where physics fixes the sign of an amplitude (`EffectKind::admissible_sign`: friction
+//! consumes force, compliance and backlash reduce the apparent inertia, …) the test is
+//! one-sided: an estimate of the wrong sign counts as no evidence. This is what keeps
+//! errors-in-variables bias out: derivative-based fingerprints (compliance's a⁗) correlate
+//! with the acceleration noise in the residual with a fixed, unphysical sign.
 //! 4. **Rank** by ERR (how much of the residual the effect explains); verdict = the best
 //!    significant candidate.
 //! 5. **Ambiguity.** If another significant candidate's best-fit contribution (its partial
@@ -41,6 +48,10 @@ pub struct Options {
     pub alpha: f64,
     /// Minimum fraction of residual variance a candidate must explain.
     pub min_err: f64,
+    /// Minimum RMS a candidate must explain, in units of the noise floor (ρ of the effect):
+    /// once the residual is at the noise floor, a "significant" 1 % is a fit to noise-like
+    /// artefacts of the record, not a physical effect worth a model term.
+    pub min_rho: f64,
     /// Correlation of contributions above which two candidates are called ambiguous.
     pub ambiguity_corr: f64,
     /// ERR ratio (runner-up / winner) above which a correlated runner-up is ambiguous.
@@ -49,7 +60,7 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { alpha: 0.05, min_err: 0.01, ambiguity_corr: 0.9, ambiguity_err_ratio: 0.8 }
+        Options { alpha: 0.05, min_err: 0.01, min_rho: 0.25, ambiguity_corr: 0.9, ambiguity_err_ratio: 0.8 }
     }
 }
 
@@ -308,9 +319,11 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         })
         .collect();
     let adj = stats::holm(&cands.iter().map(|c| c.p_value).collect::<Vec<_>>());
+    let n = e.len() as f64;
     for (c, a) in cands.iter_mut().zip(adj) {
         c.p_value = a;
-        c.significant = a < opts.alpha && c.err >= opts.min_err;
+        let explained_rms = (c.err * rss / n).sqrt();
+        c.significant = a < opts.alpha && c.err >= opts.min_err && explained_rms >= opts.min_rho * p.noise_floor;
     }
     cands.sort_by(|a, b| b.err.total_cmp(&a.err));
     for (i, c) in cands.iter_mut().enumerate() {

@@ -303,7 +303,9 @@ pub fn start_model(families: &[Family]) -> Model {
 
 fn fitted_rms(model: &Model, p: &Prepared) -> (f64, Model) {
     let mut m = model.clone();
-    refine::refit_all(&mut m, p).expect("fit");
+    if refine::refit_all(&mut m, p).is_err() {
+        return (f64::NAN, m);
+    }
     let r = residual::equation_error(&m, p).residual;
     ((r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt(), m)
 }
@@ -376,7 +378,13 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
             let r = record(&p, &d.est, "calib");
             let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
             let rr = rho(b, floor_est);
-            a *= if rr > 1e-3 { (target_rho / rr).clamp(0.05, 20.0) } else { 20.0 };
+            a *= if !rr.is_finite() {
+                0.3 // diverged: back off
+            } else if rr > 1e-3 {
+                (target_rho / rr).clamp(0.05, 20.0)
+            } else {
+                20.0
+            };
         }
         plant = with_effect(&d, &plant, f, a, travel);
     }
@@ -384,7 +392,7 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
     let val = record(&plant, &d.val, &format!("hidden seed {seed} val"));
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
-    let bounded = |rec: &Recording| rec.output.iter().all(|x| x.abs() < 50.0);
+    let bounded = |rec: &Recording| rec.output.iter().chain(&rec.input).all(|x| x.is_finite() && x.abs() < 1e6) && rec.output.iter().all(|x| x.abs() < 50.0);
     if !r.is_finite() || r > 20.0 * target_rho.max(1.0) || !bounded(&est) || !bounded(&val) {
         return None;
     }
@@ -430,7 +438,7 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
     let pe = Prepared::new(&t.est, cutoff());
     let pv = Prepared::new(&t.val, cutoff());
     let mut model = start_model(families);
-    refine::refit_all(&mut model, &pe).expect("fit");
+    refine::refit_all(&mut model, &pe).ok()?;
     let opts = Options::default();
     let d = diagnose(&model, &pe, &opts);
     if std::env::var_os("HIDDEN_DEBUG").is_some() {
@@ -447,12 +455,12 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
     match families.len() {
         1 => {
             let mut m = model.clone();
-            let r = refine::fit_add(&mut m, &pe, Some(families[0].kind()), Some(&pv)).expect("fit");
+            let r = refine::fit_add(&mut m, &pe, Some(families[0].kind()), Some(&pv)).ok()?;
             out.val_ratio = r.after_validation.expect("validation").rms / t.floor_val;
         }
         2 => {
             let mut m = model.clone();
-            let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).expect("auto");
+            let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).ok()?;
             out.auto_added = run.steps.iter().filter_map(|s| s.added.clone()).collect();
             out.val_ratio = run.steps.last().and_then(|s| s.validation).map(|v| v.rms / t.floor_val).unwrap_or(f64::NAN);
         }
