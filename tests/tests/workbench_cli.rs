@@ -32,7 +32,8 @@ fn synth(path: &Path) {
     };
     for k in 0..8000 {
         let t = k as f64 * dt;
-        let r = 0.05 * (2.0 * std::f64::consts::PI * 0.7 * t).sin() + 0.02 * (2.0 * std::f64::consts::PI * 1.9 * t).sin();
+        let r = 0.05 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
+            + 0.02 * (2.0 * std::f64::consts::PI * 1.9 * t).sin();
         let u = 400.0 * (r - x) - 40.0 * v + 0.5 * rnd();
         for j in 0..10 {
             if j == 5 {
@@ -54,9 +55,24 @@ fn csv_errors_say_file_line_column() {
     let cols = Columns::new("u_N", "y_m");
     let cases = [
         ("missing.csv", "time_s,u_N\n0,1\n", "no column `y_m`", ":1:"),
-        ("text.csv", "time_s,u_N,y_m\n0,1,2\n0.001,abc,2\n", "`abc` is not a number", ":3:"),
-        ("nan.csv", "time_s,u_N,y_m\n0,1,2\n0.001,1,NaN\n", "NaN/inf", ":3:"),
-        ("time.csv", "time_s,u_N,y_m\n0,1,2\n0.002,1,2\n0.001,1,2\n", "does not increase", ":4:"),
+        (
+            "text.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.001,abc,2\n",
+            "`abc` is not a number",
+            ":3:",
+        ),
+        (
+            "nan.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.001,1,NaN\n",
+            "NaN/inf",
+            ":3:",
+        ),
+        (
+            "time.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.002,1,2\n0.001,1,2\n",
+            "does not increase",
+            ":4:",
+        ),
     ];
     for (name, body, what, line) in cases {
         let mut body = body.to_string();
@@ -83,7 +99,10 @@ fn units_from_suffix() {
     synth(&p);
     let r = data::load(&p, &Columns::new("force_N", "pos_mm")).unwrap();
     assert_eq!(r.units.1, "m");
-    assert!(r.output.iter().fold(0.0f64, |m, v| m.max(v.abs())) < 0.1, "mm were not converted to m");
+    assert!(
+        r.output.iter().fold(0.0f64, |m, v| m.max(v.abs())) < 0.1,
+        "mm were not converted to m"
+    );
 }
 
 #[test]
@@ -110,20 +129,62 @@ fn diagnose_fit_and_compare_end_to_end() {
 
     // fit --add coulomb writes a model whose Coulomb level is the simulated 0.8 N
     let out = d.join("fitted.toml");
-    run(Cli::parse_from(["hil-host", "fit", rec_s, "--input", "force_N", "--output", "pos_mm", "--add", "coulomb", "--save-model", out.to_str().unwrap()])).unwrap();
+    run(Cli::parse_from([
+        "hil-host",
+        "fit",
+        rec_s,
+        "--input",
+        "force_N",
+        "--output",
+        "pos_mm",
+        "--add",
+        "coulomb",
+        "--save-model",
+        out.to_str().unwrap(),
+    ]))
+    .unwrap();
     let m = Model::load(&out).unwrap();
-    let fc = m.effects.iter().find(|e| e.kind.name() == "coulomb").unwrap().params[0].clone();
+    let fc = m
+        .effects
+        .iter()
+        .find(|e| e.kind.name() == "coulomb")
+        .unwrap()
+        .params[0]
+        .clone();
     assert!((fc.value - 0.8).abs() < 0.1, "fc {}", fc.value);
     assert!((m.inertia.value - 2.0).abs() < 0.1, "m {}", m.inertia.value);
     assert!(fc.sigma.unwrap() > 0.0);
 
     // compare writes the HTML report with the five plots inlined
     let rep = d.join("report");
-    run(Cli::parse_from(["hil-host", "compare", rec_s, "--input", "force_N", "--output", "pos_mm", "--model", out.to_str().unwrap(), "--out", rep.to_str().unwrap(), "--png"])).unwrap();
+    run(Cli::parse_from([
+        "hil-host",
+        "compare",
+        rec_s,
+        "--input",
+        "force_N",
+        "--output",
+        "pos_mm",
+        "--model",
+        out.to_str().unwrap(),
+        "--out",
+        rep.to_str().unwrap(),
+        "--png",
+    ]))
+    .unwrap();
     let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
     assert_eq!(html.matches("<svg").count(), 5);
-    for id in ["overlay", "residual_time", "residual_velocity", "residual_position", "residual_spectrum"] {
-        assert!(rep.join(format!("{id}.svg")).exists() && rep.join(format!("{id}.png")).exists(), "{id}");
+    for id in [
+        "overlay",
+        "residual_time",
+        "residual_velocity",
+        "residual_position",
+        "residual_spectrum",
+    ] {
+        assert!(
+            rep.join(format!("{id}.svg")).exists() && rep.join(format!("{id}.png")).exists(),
+            "{id}"
+        );
     }
     // the fitted model leaves nothing significant
     let p2 = Prepared::new(&data::load(&rec, &cols).unwrap(), None);
@@ -132,7 +193,9 @@ fn diagnose_fit_and_compare_end_to_end() {
 
     // every subcommand has examples in --help
     for sub in ["compare", "diagnose", "fit"] {
-        let e = Cli::try_parse_from(["hil-host", sub, "--help"]).unwrap_err().to_string();
+        let e = Cli::try_parse_from(["hil-host", sub, "--help"])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("Examples:"), "{sub}");
     }
 }

@@ -19,23 +19,55 @@ fn trials(families: &[Family], seeds: std::ops::Range<u64>, rho: f64) -> Vec<Out
 
 #[test]
 fn single_effects_rank_first_and_refit_to_the_noise_floor() {
-    let fams = [Family::Offset, Family::Coulomb, Family::Asymmetry, Family::Ripple, Family::Gravity, Family::Delay];
+    let fams = [
+        Family::Offset,
+        Family::Coulomb,
+        Family::Asymmetry,
+        Family::Ripple,
+        Family::Gravity,
+        Family::Delay,
+    ];
     for (i, f) in fams.iter().enumerate() {
         let base = 50_000 + 100 * i as u64;
         let out = trials(&[*f], base..base + 3, 2.0);
         assert!(out.len() >= 2, "{}: too many unstable draws", f.name());
         for o in &out {
-            println!("{:<10} ρ = {:.2}  top = {:?}  verdict = {:?}  val/floor = {:.3}", f.name(), o.rho, o.top, o.verdict, o.val_ratio);
-            assert!(o.rho >= 1.0, "{}: generator missed the strength target (ρ = {})", f.name(), o.rho);
+            println!(
+                "{:<10} ρ = {:.2}  top = {:?}  verdict = {:?}  val/floor = {:.3}",
+                f.name(),
+                o.rho,
+                o.top,
+                o.verdict,
+                o.val_ratio
+            );
+            assert!(
+                o.rho >= 1.0,
+                "{}: generator missed the strength target (ρ = {})",
+                f.name(),
+                o.rho
+            );
         }
-        let hits = out.iter().filter(|o| o.rank1_ok() && o.verdict.as_deref() == Some(f.name())).count();
-        assert!(hits == out.len(), "{}: rank-1 verdict in {hits}/{}", f.name(), out.len());
+        let hits = out
+            .iter()
+            .filter(|o| o.rank1_ok() && o.verdict.as_deref() == Some(f.name()))
+            .count();
+        assert!(
+            hits == out.len(),
+            "{}: rank-1 verdict in {hits}/{}",
+            f.name(),
+            out.len()
+        );
         if !matches!(f, Family::Coulomb | Family::Gravity) {
             // Static Coulomb cannot represent LuGre pre-sliding, and the gravity refit misses
             // the 1.1× bar on some validation records; both measured by the bench, see
             // docs/workbench.md.
             let fit_ok = out.iter().filter(|o| o.val_ratio <= 1.1).count();
-            assert!(fit_ok + 1 >= out.len(), "{}: validation RMS ≤ 1.1·floor in {fit_ok}/{}", f.name(), out.len());
+            assert!(
+                fit_ok + 1 >= out.len(),
+                "{}: validation RMS ≤ 1.1·floor in {fit_ok}/{}",
+                f.name(),
+                out.len()
+            );
         }
     }
 }
@@ -44,7 +76,11 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
 fn null_trials_stay_quiet() {
     let out = trials(&[], 70_000..70_010, 1.0);
     assert!(out.len() >= 8);
-    let alarms: Vec<_> = out.iter().filter(|o| !o.null_ok()).map(|o| o.verdict.clone()).collect();
+    let alarms: Vec<_> = out
+        .iter()
+        .filter(|o| !o.null_ok())
+        .map(|o| o.verdict.clone())
+        .collect();
     println!("null trials: {} run, false alarms {:?}", out.len(), alarms);
     assert!(alarms.len() <= 1, "false alarms: {alarms:?}");
 }
@@ -52,10 +88,23 @@ fn null_trials_stay_quiet() {
 #[test]
 fn auto_finds_two_hidden_effects() {
     let mut out = trials(&[Family::Coulomb, Family::Offset], 90_000..90_001, 2.0);
-    out.extend(trials(&[Family::Gravity, Family::Asymmetry], 90_001..90_002, 2.0));
+    out.extend(trials(
+        &[Family::Gravity, Family::Asymmetry],
+        90_001..90_002,
+        2.0,
+    ));
     assert_eq!(out.len(), 2);
     for o in &out {
-        println!("hidden {:?} → --auto added {:?}", o.families.iter().map(|f| f.name()).collect::<Vec<_>>(), o.auto_added);
-        assert!(o.pair_ok(), "hidden {:?}, added {:?}", o.families, o.auto_added);
+        println!(
+            "hidden {:?} → --auto added {:?}",
+            o.families.iter().map(|f| f.name()).collect::<Vec<_>>(),
+            o.auto_added
+        );
+        assert!(
+            o.pair_ok(),
+            "hidden {:?}, added {:?}",
+            o.families,
+            o.auto_added
+        );
     }
 }

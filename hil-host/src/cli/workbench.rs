@@ -120,6 +120,11 @@ pub struct CompareArgs {
     /// Also write PNGs.
     #[arg(long)]
     pub png: bool,
+    /// Refit the free parameters of `--model` on this recording first (by default a given
+    /// model is compared as it is — e.g. a fitted model on validation data; the default
+    /// baseline is always fitted).
+    #[arg(long)]
+    pub refit: bool,
     /// Print the metrics as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -184,7 +189,10 @@ pub struct FitArgs {
 /// Run `compare`.
 pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let p = a.data.prepared(&a.data.file)?;
-    let model = a.data.model(&p)?;
+    let model = match (&a.data.model, a.refit) {
+        (Some(f), false) => Model::load(f)?,
+        _ => a.data.model(&p)?,
+    };
     let mode = match a.residual {
         ResidualArg::Equation => Mode::Equation,
         ResidualArg::Output => Mode::Output,
@@ -194,20 +202,43 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         Mode::Output => residual::output_error(&model, &p),
     };
     let m = metrics::compute(&res, a.period);
-    let rec_units = data::unit_of(if mode == Mode::Equation { &a.data.input } else { &a.data.output }).0;
-    let charts = report::charts(&res, &m, rec_units);
+    let rec_units = if mode == Mode::Equation {
+        let u = data::unit_of(&a.data.input).0;
+        if a.data.input_gain == 1.0 {
+            u.to_string()
+        } else {
+            format!("{u}×{}", a.data.input_gain)
+        }
+    } else {
+        data::unit_of(&a.data.output).0.to_string()
+    };
+    let charts = report::charts(&res, &m, &rec_units);
     let params = refine::param_rows(&model);
-    let ptext: String = params.iter().map(|r| format!("{:<12} {:<14} {:>14.6e} ± {:.2e}\n", r.owner, r.name, r.value, r.sigma)).collect();
+    let ptext: String = params
+        .iter()
+        .map(|r| {
+            format!(
+                "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
+                r.owner, r.name, r.value, r.sigma
+            )
+        })
+        .collect();
     let html = report::write(
         &a.out,
         &format!("compare: {} vs {}", model.name, a.data.file.display()),
-        &[("metrics".into(), m.to_text()), ("model parameters".into(), ptext.clone())],
+        &[
+            ("metrics".into(), m.to_text()),
+            ("model parameters".into(), ptext.clone()),
+        ],
         &charts,
         a.png,
     )
     .map_err(anyhow::Error::msg)?;
     if a.json {
-        println!("{}", serde_json::json!({ "metrics": m, "params": params, "report": html }));
+        println!(
+            "{}",
+            serde_json::json!({ "metrics": m, "params": params, "report": html })
+        );
     } else {
         println!("model: {}\n{}", model.name, ptext);
         print!("{}", m.to_text());
@@ -217,7 +248,10 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
 }
 
 fn auto_text(run: &AutoRun) -> String {
-    let mut s = format!("{:>4}  {:<13} {:>9} {:>12} {:>10} {:>12} {:>10}\n", "step", "added", "fit %", "RMS", "Holm p", "val RMS", "val fit %");
+    let mut s = format!(
+        "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>12} {:>10}\n",
+        "step", "added", "fit %", "RMS", "Holm p", "val RMS", "val fit %"
+    );
     for st in &run.steps {
         s.push_str(&format!(
             "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
@@ -226,8 +260,12 @@ fn auto_text(run: &AutoRun) -> String {
             st.score.fit_percent,
             st.score.rms,
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
-            st.validation.map(|v| format!("{:.4e}", v.rms)).unwrap_or_default(),
-            st.validation.map(|v| format!("{:.3}", v.fit_percent)).unwrap_or_default(),
+            st.validation
+                .map(|v| format!("{:.4e}", v.rms))
+                .unwrap_or_default(),
+            st.validation
+                .map(|v| format!("{:.3}", v.fit_percent))
+                .unwrap_or_default(),
         ));
     }
     s
@@ -237,7 +275,12 @@ fn auto_text(run: &AutoRun) -> String {
 pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     let p = a.data.prepared(&a.data.file)?;
     let mut model = a.data.model(&p)?;
-    let opts = Options { alpha: a.alpha, min_err: a.min_err, min_rho: a.min_rho, ..Options::default() };
+    let opts = Options {
+        alpha: a.alpha,
+        min_err: a.min_err,
+        min_rho: a.min_rho,
+        ..Options::default()
+    };
     if !a.auto {
         let d = diagnose::diagnose(&model, &p, &opts);
         if a.json {
@@ -260,13 +303,21 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     if let Some(dir) = &a.out {
         let mut series = vec![Series {
             name: "estimation RMS".into(),
-            points: run.steps.iter().map(|s| (s.step as f64, s.score.rms)).collect(),
+            points: run
+                .steps
+                .iter()
+                .map(|s| (s.step as f64, s.score.rms))
+                .collect(),
             scatter: false,
         }];
         if val.is_some() {
             series.push(Series {
                 name: "validation RMS".into(),
-                points: run.steps.iter().filter_map(|s| s.validation.map(|v| (s.step as f64, v.rms))).collect(),
+                points: run
+                    .steps
+                    .iter()
+                    .filter_map(|s| s.validation.map(|v| (s.step as f64, v.rms)))
+                    .collect(),
                 scatter: false,
             });
         }
@@ -279,12 +330,17 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         };
         let ptext: String = refine::param_rows(&model)
             .iter()
-            .map(|r| format!("{:<12} {:<14} {:>14.6e} ± {:.2e}\n", r.owner, r.name, r.value, r.sigma))
+            .map(|r| {
+                format!(
+                    "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
+                    r.owner, r.name, r.value, r.sigma
+                )
+            })
             .collect();
         let res = residual::equation_error(&model, &p);
         let m = metrics::compute(&res, None);
         let mut charts = vec![chart];
-        charts.extend(report::charts(&res, &m, &data::unit_of(&a.data.input).0.to_string()));
+        charts.extend(report::charts(&res, &m, data::unit_of(&a.data.input).0));
         report_path = Some(
             report::write(
                 dir,
@@ -323,14 +379,28 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
 
 fn fit_text(r: &FitReport) -> String {
     let mut s = String::new();
-    s.push_str(&format!("added: {}\n", r.added.as_deref().unwrap_or("(nothing, refit only)")));
-    s.push_str(&format!("{:<12} {:<14} {:>14}   {:>10}\n", "owner", "parameter", "value", "1σ"));
+    s.push_str(&format!(
+        "added: {}\n",
+        r.added.as_deref().unwrap_or("(nothing, refit only)")
+    ));
+    s.push_str(&format!(
+        "{:<12} {:<14} {:>14}   {:>10}\n",
+        "owner", "parameter", "value", "1σ"
+    ));
     for p in &r.params {
-        s.push_str(&format!("{:<12} {:<14} {:>14.6e} ± {:.3e}\n", p.owner, p.name, p.value, p.sigma));
+        s.push_str(&format!(
+            "{:<12} {:<14} {:>14.6e} ± {:.3e}\n",
+            p.owner, p.name, p.value, p.sigma
+        ));
     }
     s.push_str(&format!(
         "estimation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
-        r.before.fit_percent, r.after.fit_percent, r.before.rms, r.after.rms, r.before.relative_error_percent, r.after.relative_error_percent
+        r.before.fit_percent,
+        r.after.fit_percent,
+        r.before.rms,
+        r.after.rms,
+        r.before.relative_error_percent,
+        r.after.relative_error_percent
     ));
     if let (Some(b), Some(a)) = (r.before_validation, r.after_validation) {
         s.push_str(&format!(
@@ -351,7 +421,14 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     let kind = match &a.add {
         Some(n) => {
             let k = EffectKind::from_name(n).with_context(|| {
-                format!("unknown effect `{n}`; known: {}", EffectKind::ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "))
+                format!(
+                    "unknown effect `{n}`; known: {}",
+                    EffectKind::ALL
+                        .iter()
+                        .map(|k| k.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
             })?;
             if model.has(k) {
                 bail!("the model already contains `{n}`");
@@ -367,7 +444,10 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
     model.save(&a.save_model)?;
     if a.json {
-        println!("{}", serde_json::json!({ "report": r, "model_file": a.save_model }));
+        println!(
+            "{}",
+            serde_json::json!({ "report": r, "model_file": a.save_model })
+        );
     } else {
         print!("{}", fit_text(&r));
         println!("model written to {}", a.save_model.display());

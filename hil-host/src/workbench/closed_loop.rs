@@ -44,7 +44,14 @@ pub struct LoopRun {
 
 /// Simulate `model` in the cascade loop following `reference`, with `pulse` added to the
 /// command (same length; zeros if none), starting at rest at `q0`.
-pub fn simulate(model: &Model, c: &Cascade, time: &[f64], reference: &[f64], pulse: &[f64], q0: f64) -> LoopRun {
+pub fn simulate(
+    model: &Model,
+    c: &Cascade,
+    time: &[f64],
+    reference: &[f64],
+    pulse: &[f64],
+    q0: f64,
+) -> LoopRun {
     let n = time.len();
     let m = model.inertia.value;
     let (mut q, mut v, mut a) = (q0, 0.0, 0.0);
@@ -53,7 +60,11 @@ pub fn simulate(model: &Model, c: &Cascade, time: &[f64], reference: &[f64], pul
     let mut pos = Vec::with_capacity(n);
     let mut force = Vec::with_capacity(n);
     for k in 0..n {
-        let dt = if k + 1 < n { time[k + 1] - time[k] } else { time[k] - time[k - 1] };
+        let dt = if k + 1 < n {
+            time[k + 1] - time[k]
+        } else {
+            time[k] - time[k - 1]
+        };
         let qf = 0.5 * q + 0.5 * q_prev;
         let dqf = if k == 0 { 0.0 } else { (qf - qf_prev) / dt };
         let ck = c.kv * (c.kp * (reference[k] - q) - dqf);
@@ -80,5 +91,8 @@ pub fn simulate(model: &Model, c: &Cascade, time: &[f64], reference: &[f64], pul
             a = k4v;
         }
     }
-    LoopRun { position: pos, force }
+    LoopRun {
+        position: pos,
+        force,
+    }
 }

@@ -177,23 +177,33 @@ impl Recording {
 /// time with the file, line and column in the message.
 pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     let file = path.to_path_buf();
-    let text = std::fs::read(path).map_err(|source| DataError::Io { file: file.clone(), source })?;
+    let text = std::fs::read(path).map_err(|source| DataError::Io {
+        file: file.clone(),
+        source,
+    })?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
         .from_reader(text.as_slice());
     let header: Vec<String> = rdr
         .headers()
-        .map_err(|e| DataError::Malformed { file: file.clone(), line: 1, msg: e.to_string() })?
+        .map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: 1,
+            msg: e.to_string(),
+        })?
         .iter()
         .map(|s| s.to_string())
         .collect();
     let find = |name: &str| -> Result<usize, DataError> {
-        header.iter().position(|h| h == name).ok_or_else(|| DataError::MissingColumn {
-            file: file.clone(),
-            column: name.into(),
-            have: header.join(", "),
-        })
+        header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| DataError::MissingColumn {
+                file: file.clone(),
+                column: name.into(),
+                have: header.join(", "),
+            })
     };
     let ti = find(&cols.time)?;
     let ui = find(&cols.input)?;
@@ -205,7 +215,11 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     let (_, ts) = unit_of(&cols.time);
     let (uu, us) = unit_of(&cols.input);
     let (yu, ys) = unit_of(&cols.output);
-    let ls = cols.load_output.as_deref().map(|c| unit_of(c).1).unwrap_or(1.0);
+    let ls = cols
+        .load_output
+        .as_deref()
+        .map(|c| unit_of(c).1)
+        .unwrap_or(1.0);
 
     let mut time = Vec::new();
     let mut input = Vec::new();
@@ -214,7 +228,11 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     for rec in rdr.records() {
         let rec = rec.map_err(|e| {
             let line = e.position().map(|p| p.line()).unwrap_or(0);
-            DataError::Malformed { file: file.clone(), line, msg: e.to_string() }
+            DataError::Malformed {
+                file: file.clone(),
+                line,
+                msg: e.to_string(),
+            }
         })?;
         let line = rec.position().map(|p| p.line()).unwrap_or(0);
         let cell = |i: usize, name: &str| -> Result<f64, DataError> {
@@ -226,7 +244,12 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
                 cell: s.into(),
             })?;
             if !v.is_finite() {
-                return Err(DataError::NotFinite { file: file.clone(), line, column: name.into(), value: v });
+                return Err(DataError::NotFinite {
+                    file: file.clone(),
+                    line,
+                    column: name.into(),
+                    value: v,
+                });
             }
             Ok(v)
         };
@@ -250,7 +273,11 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
     }
     if time.len() < 50 {
-        return Err(DataError::TooShort { file, rows: time.len(), need: 50 });
+        return Err(DataError::TooShort {
+            file,
+            rows: time.len(),
+            need: 50,
+        });
     }
     let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
     let in_unit = if cols.input_gain != 1.0 {
@@ -274,22 +301,35 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
 /// For extra signals a command needs beside input/output (a reference, a pulse train).
 pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
     let file = path.to_path_buf();
-    let text = std::fs::read(path).map_err(|source| DataError::Io { file: file.clone(), source })?;
-    let mut rdr = csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).from_reader(text.as_slice());
+    let text = std::fs::read(path).map_err(|source| DataError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_slice());
     let header: Vec<String> = rdr
         .headers()
-        .map_err(|e| DataError::Malformed { file: file.clone(), line: 1, msg: e.to_string() })?
+        .map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: 1,
+            msg: e.to_string(),
+        })?
         .iter()
         .map(|s| s.to_string())
         .collect();
     let idx: Vec<usize> = names
         .iter()
         .map(|n| {
-            header.iter().position(|h| h == n).ok_or_else(|| DataError::MissingColumn {
-                file: file.clone(),
-                column: (*n).into(),
-                have: header.join(", "),
-            })
+            header
+                .iter()
+                .position(|h| h == n)
+                .ok_or_else(|| DataError::MissingColumn {
+                    file: file.clone(),
+                    column: (*n).into(),
+                    have: header.join(", "),
+                })
         })
         .collect::<Result<_, _>>()?;
     let mut out = vec![Vec::new(); names.len()];
@@ -309,7 +349,12 @@ pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataEr
                 cell: s.into(),
             })?;
             if !v.is_finite() {
-                return Err(DataError::NotFinite { file: file.clone(), line, column: names[k].into(), value: v });
+                return Err(DataError::NotFinite {
+                    file: file.clone(),
+                    line,
+                    column: names[k].into(),
+                    value: v,
+                });
             }
             out[k].push(v);
         }

@@ -60,7 +60,13 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { alpha: 0.05, min_err: 0.01, min_rho: 0.25, ambiguity_corr: 0.9, ambiguity_err_ratio: 0.8 }
+        Options {
+            alpha: 0.05,
+            min_err: 0.01,
+            min_rho: 0.25,
+            ambiguity_corr: 0.9,
+            ambiguity_err_ratio: 0.8,
+        }
     }
 }
 
@@ -145,7 +151,14 @@ struct Scan {
 }
 
 /// Best shape of one effect by ERR against residual `e` of regressors with Gram inverse `g0i`.
-fn scan(kind: EffectKind, p: &Prepared, x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64], rss: f64) -> Option<Scan> {
+fn scan(
+    kind: EffectKind,
+    p: &Prepared,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    rss: f64,
+) -> Option<Scan> {
     let t = p.trajectory();
     let grid = shape_grid(kind, &t);
     let mut best: Option<Scan> = None;
@@ -156,7 +169,12 @@ fn scan(kind: EffectKind, p: &Prepared, x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: 
         }
         let dr = delta_rss(&z, x0, g0i, e);
         if best.as_ref().is_none_or(|b| dr / rss > b.err) {
-            best = Some(Scan { kind, shape: *s, err: dr / rss, grid: grid.len() });
+            best = Some(Scan {
+                kind,
+                shape: *s,
+                err: dr / rss,
+                grid: grid.len(),
+            });
         }
     }
     best
@@ -166,9 +184,15 @@ fn scan(kind: EffectKind, p: &Prepared, x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: 
 fn delta_rss(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> f64 {
     let q = z.len();
     let p = x0.len();
-    let zx = DMatrix::from_fn(q, p, |i, j| z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>());
+    let zx = DMatrix::from_fn(q, p, |i, j| {
+        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
+    });
     let zz = gram(z);
-    let ze = DVector::from_iterator(q, z.iter().map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()));
+    let ze = DVector::from_iterator(
+        q,
+        z.iter()
+            .map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()),
+    );
     let zt = &zz - &zx * g0i * zx.transpose();
     // Columns the current model already spans carry no new information.
     for i in 0..q {
@@ -185,7 +209,9 @@ fn contribution(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) 
     let n = e.len();
     let q = z.len();
     let p = x0.len();
-    let zx = DMatrix::from_fn(q, p, |i, j| z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>());
+    let zx = DMatrix::from_fn(q, p, |i, j| {
+        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
+    });
     let b = g0i * zx.transpose(); // p×q
     let zt: Vec<Vec<f64>> = (0..q)
         .map(|i| {
@@ -200,7 +226,11 @@ fn contribution(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) 
         })
         .collect();
     let gi = gram_inverse(&gram(&zt));
-    let ze = DVector::from_iterator(q, zt.iter().map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()));
+    let ze = DVector::from_iterator(
+        q,
+        zt.iter()
+            .map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()),
+    );
     let g = gi * ze;
     let mut out = vec![0.0; n];
     for i in 0..q {
@@ -244,7 +274,14 @@ pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
 }
 
 /// Best shape of one effect and its ERR against residual `e` of regressors `x0`.
-pub fn scan_shape(kind: EffectKind, p: &Prepared, x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64], rss: f64) -> Option<(Shape, f64)> {
+pub fn scan_shape(
+    kind: EffectKind,
+    p: &Prepared,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    rss: f64,
+) -> Option<(Shape, f64)> {
     scan(kind, p, x0, g0i, e, rss).map(|s| (s.shape, s.err))
 }
 
@@ -273,8 +310,14 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         }
         match scan(kind, p, x0, &g0i, e, rss) {
             Some(s) if s.err > 0.0 => scans.push(s),
-            Some(_) => untestable.push(format!("{}: fingerprint already spanned by the model on this record", kind.name())),
-            None => untestable.push(format!("{}: no shape to test on this record (e.g. unknown period)", kind.name())),
+            Some(_) => untestable.push(format!(
+                "{}: fingerprint already spanned by the model on this record",
+                kind.name()
+            )),
+            None => untestable.push(format!(
+                "{}: no shape to test on this record (e.g. unknown period)",
+                kind.name()
+            )),
         }
     }
 
@@ -323,7 +366,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     for (c, a) in cands.iter_mut().zip(adj) {
         c.p_value = a;
         let explained_rms = (c.err * rss / n).sqrt();
-        c.significant = a < opts.alpha && c.err >= opts.min_err && explained_rms >= opts.min_rho * p.noise_floor;
+        c.significant = a < opts.alpha
+            && c.err >= opts.min_err
+            && explained_rms >= opts.min_rho * p.noise_floor;
     }
     cands.sort_by(|a, b| b.err.total_cmp(&a.err));
     for (i, c) in cands.iter_mut().enumerate() {
@@ -343,7 +388,11 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             let zw = fingerprint(wk, &t, &w.shape);
             let cw = contribution(&zw, x0, &g0i, e);
             let mut amb = Vec::new();
-            for c in cands.iter().filter(|c| c.significant && c.effect != w.effect).take(6) {
+            for c in cands
+                .iter()
+                .filter(|c| c.significant && c.effect != w.effect)
+                .take(6)
+            {
                 if c.err < opts.ambiguity_err_ratio * w.err {
                     continue;
                 }
@@ -355,7 +404,12 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             }
             let experiment = amb.first().map(|&b| separating_experiment(wk, b));
             let text = if amb.is_empty() {
-                format!("add {} (explains {:.1} % of the residual, Holm p = {:.2e})", w.effect, 100.0 * w.err, w.p_value)
+                format!(
+                    "add {} (explains {:.1} % of the residual, Holm p = {:.2e})",
+                    w.effect,
+                    100.0 * w.err,
+                    w.p_value
+                )
             } else {
                 format!(
                     "add {} — but hard to tell apart from {} on this record; to separate them: {}",
@@ -372,7 +426,13 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             }
         }
     };
-    Diagnosis { residual_mode: residual::Mode::Equation.name().into(), baseline, candidates: cands, verdict, untestable }
+    Diagnosis {
+        residual_mode: residual::Mode::Equation.name().into(),
+        baseline,
+        candidates: cands,
+        verdict,
+        untestable,
+    }
 }
 
 impl Diagnosis {
@@ -398,7 +458,11 @@ impl Diagnosis {
             "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e}   Ljung–Box p {:.2e}",
             self.residual_mode, b.fit_percent, b.rms, b.noise_floor_rms, b.ljung_box_p
         );
-        let _ = writeln!(s, "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>4} {:>5}  sig", "rank", "effect", "ERR %", "F", "Holm p", "df", "grid");
+        let _ = writeln!(
+            s,
+            "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>4} {:>5}  sig",
+            "rank", "effect", "ERR %", "F", "Holm p", "df", "grid"
+        );
         for c in &self.candidates {
             let _ = writeln!(
                 s,

@@ -57,7 +57,10 @@ pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
     if n < 3 || fc <= 0.0 || fc >= fs / 2.0 {
         return x.to_vec();
     }
-    let secs = [Biquad::lowpass(fc, fs, 0.541_196_100_146_197), Biquad::lowpass(fc, fs, 1.306_562_964_876_376_6)];
+    let secs = [
+        Biquad::lowpass(fc, fs, 0.541_196_100_146_197),
+        Biquad::lowpass(fc, fs, 1.306_562_964_876_376_6),
+    ];
     let pad = ((3.0 * fs / fc).ceil() as usize + 12).min(n - 1);
     // Odd reflection about the end points keeps value and slope continuous.
     let mut buf = Vec::with_capacity(n + 2 * pad);
@@ -84,7 +87,11 @@ pub fn noise_gain(fc: f64, fs: f64) -> f64 {
     let n = ((40.0 * fs / fc) as usize).clamp(64, 1 << 16);
     let mut x = vec![0.0; n];
     x[n / 2] = 1.0;
-    filtfilt(&x, fc, fs).iter().map(|h| h * h).sum::<f64>().sqrt()
+    filtfilt(&x, fc, fs)
+        .iter()
+        .map(|h| h * h)
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Smoothed position, velocity and acceleration.
@@ -115,7 +122,11 @@ pub fn differentiate(x: &[f64], dt: f64, fc: f64) -> Derivatives {
         a[0] = a[1];
         a[n - 1] = a[n - 2];
     }
-    Derivatives { position: p, velocity: v, acceleration: a }
+    Derivatives {
+        position: p,
+        velocity: v,
+        acceleration: a,
+    }
 }
 
 /// Default cut-off: a tenth of the sample rate.
@@ -141,15 +152,23 @@ mod tests {
         let e = edge_samples(dt, 50.0);
         for i in e..x.len() - e {
             let t = i as f64 * dt;
-            assert!((d.velocity[i] - w * (w * t).cos()).abs() < 1e-3 * w, "v at {i}");
-            assert!((d.acceleration[i] + w * w * (w * t).sin()).abs() < 1e-2 * w * w, "a at {i}");
+            assert!(
+                (d.velocity[i] - w * (w * t).cos()).abs() < 1e-3 * w,
+                "v at {i}"
+            );
+            assert!(
+                (d.acceleration[i] + w * w * (w * t).sin()).abs() < 1e-2 * w * w,
+                "a at {i}"
+            );
         }
     }
 
     #[test]
     fn filter_removes_high_frequency() {
         let dt = 1e-3;
-        let x: Vec<f64> = (0..4000).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let x: Vec<f64> = (0..4000)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
         let y = filtfilt(&x, 50.0, 1.0 / dt);
         assert!(y[100..3900].iter().all(|v| v.abs() < 1e-3));
     }

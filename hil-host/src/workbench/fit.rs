@@ -88,7 +88,15 @@ pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
     if g.iter().any(|v| !v.is_finite()) {
         return DMatrix::from_element(p, p, f64::NAN);
     }
-    let d: Vec<f64> = (0..p).map(|i| if g[(i, i)] > 0.0 { 1.0 / g[(i, i)].sqrt() } else { 0.0 }).collect();
+    let d: Vec<f64> = (0..p)
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
     let inv = gs
         .pseudo_inverse(1e-12)
@@ -97,7 +105,11 @@ pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
 }
 
 /// Batch-means sandwich covariance for regressors `cols` and residual `e`.
-pub fn batch_covariance(cols: &[Vec<f64>], e: &[f64], ginv: &DMatrix<f64>) -> (DMatrix<f64>, usize) {
+pub fn batch_covariance(
+    cols: &[Vec<f64>],
+    e: &[f64],
+    ginv: &DMatrix<f64>,
+) -> (DMatrix<f64>, usize) {
     let n = e.len();
     let p = cols.len();
     let m = BLOCKS.min(n / 20).max(2);
@@ -125,12 +137,19 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
     if n < p + 2 {
         return Err(FitError::TooFew(n, p));
     }
-    if y.iter().chain(cols.iter().flatten()).any(|v| !v.is_finite()) {
+    if y.iter()
+        .chain(cols.iter().flatten())
+        .any(|v| !v.is_finite())
+    {
         return Err(FitError::NonFinite);
     }
     let g = gram(cols);
     let ginv = gram_inverse(&g);
-    let xty = DVector::from_iterator(p, cols.iter().map(|c| c.iter().zip(y).map(|(a, b)| a * b).sum()));
+    let xty = DVector::from_iterator(
+        p,
+        cols.iter()
+            .map(|c| c.iter().zip(y).map(|(a, b)| a * b).sum()),
+    );
     let theta = &ginv * xty;
     let mut residual = y.to_vec();
     for (j, c) in cols.iter().enumerate() {
@@ -141,7 +160,13 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
     }
     let rss = residual.iter().map(|r| r * r).sum();
     let (cov, blocks) = batch_covariance(cols, &residual, &ginv);
-    Ok(LsFit { theta: theta.iter().copied().collect(), cov, residual, rss, blocks })
+    Ok(LsFit {
+        theta: theta.iter().copied().collect(),
+        cov,
+        residual,
+        rss,
+        blocks,
+    })
 }
 
 /// Result of a Levenberg–Marquardt fit.
@@ -181,7 +206,10 @@ pub fn levenberg_marquardt<F: Fn(&[f64]) -> Vec<f64>>(f: F, x0: &[f64], max_iter
     while it < max_iter {
         it += 1;
         let g = gram(&j);
-        let grad = DVector::from_iterator(p, j.iter().map(|c| c.iter().zip(&r).map(|(a, b)| a * b).sum()));
+        let grad = DVector::from_iterator(
+            p,
+            j.iter().map(|c| c.iter().zip(&r).map(|(a, b)| a * b).sum()),
+        );
         let mut improved = false;
         for _ in 0..20 {
             let mut a = g.clone();
@@ -217,7 +245,12 @@ pub fn levenberg_marquardt<F: Fn(&[f64]) -> Vec<f64>>(f: F, x0: &[f64], max_iter
     let g = gram(&j);
     let ginv = gram_inverse(&g);
     let (cov, _) = batch_covariance(&j, &r, &ginv);
-    LmFit { x, cov, residual: r, iterations: it }
+    LmFit {
+        x,
+        cov,
+        residual: r,
+        iterations: it,
+    }
 }
 
 #[cfg(test)]
@@ -229,7 +262,9 @@ mod tests {
         let n = 2000;
         let x1: Vec<f64> = (0..n).map(|i| (i as f64 * 0.01).sin()).collect();
         let x2: Vec<f64> = vec![1.0; n];
-        let y: Vec<f64> = (0..n).map(|i| 3.0 * x1[i] - 2.0 + 0.01 * ((i * 7919 % 101) as f64 / 50.0 - 1.0)).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|i| 3.0 * x1[i] - 2.0 + 0.01 * ((i * 7919 % 101) as f64 / 50.0 - 1.0))
+            .collect();
         let f = least_squares(&[x1, x2], &y).unwrap();
         assert!((f.theta[0] - 3.0).abs() < 1e-2 && (f.theta[1] + 2.0).abs() < 1e-2);
         assert!(f.sigma(0) > 0.0 && f.sigma(0) < 0.01);
@@ -241,7 +276,20 @@ mod tests {
     fn lm_fits_an_exponential() {
         let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.05).collect();
         let y: Vec<f64> = t.iter().map(|&t| 2.0 * (-0.7 * t).exp()).collect();
-        let fit = levenberg_marquardt(|p| t.iter().zip(&y).map(|(&t, &y)| y - p[0] * (-p[1] * t).exp()).collect(), &[1.0, 0.2], 100);
-        assert!((fit.x[0] - 2.0).abs() < 1e-6 && (fit.x[1] - 0.7).abs() < 1e-6, "{:?}", fit.x);
+        let fit = levenberg_marquardt(
+            |p| {
+                t.iter()
+                    .zip(&y)
+                    .map(|(&t, &y)| y - p[0] * (-p[1] * t).exp())
+                    .collect()
+            },
+            &[1.0, 0.2],
+            100,
+        );
+        assert!(
+            (fit.x[0] - 2.0).abs() < 1e-6 && (fit.x[1] - 0.7).abs() < 1e-6,
+            "{:?}",
+            fit.x
+        );
     }
 }

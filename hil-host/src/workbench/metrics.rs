@@ -78,7 +78,10 @@ pub fn noise_floor(r: &[f64]) -> f64 {
     if r.len() < 3 {
         return 0.0;
     }
-    let s: f64 = r.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2)).sum();
+    let s: f64 = r
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2))
+        .sum();
     (s / (6.0 * (r.len() - 2) as f64)).sqrt()
 }
 
@@ -91,15 +94,26 @@ pub fn fit_percent(y: &[f64], yhat: &[f64]) -> f64 {
 }
 
 fn bin(label: String, vals: &[f64]) -> Bin {
-    let mean = if vals.is_empty() { 0.0 } else { vals.iter().sum::<f64>() / vals.len() as f64 };
-    Bin { label, count: vals.len(), rms: rms(vals), mean }
+    let mean = if vals.is_empty() {
+        0.0
+    } else {
+        vals.iter().sum::<f64>() / vals.len() as f64
+    };
+    Bin {
+        label,
+        count: vals.len(),
+        rms: rms(vals),
+        mean,
+    }
 }
 
 fn quantile_bins(key: &[f64], r: &[f64], k: usize, name: &str) -> Vec<Bin> {
     let mut sorted: Vec<f64> = key.to_vec();
     sorted.sort_by(f64::total_cmp);
     let n = sorted.len();
-    let edges: Vec<f64> = (0..=k).map(|i| sorted[((i * (n - 1)) / k).min(n - 1)]).collect();
+    let edges: Vec<f64> = (0..=k)
+        .map(|i| sorted[((i * (n - 1)) / k).min(n - 1)])
+        .collect();
     (0..k)
         .map(|i| {
             let (lo, hi) = (edges[i], edges[i + 1]);
@@ -128,12 +142,18 @@ pub fn compute(res: &Residual, period: Option<f64>) -> Metrics {
     let ynorm = res.measured.iter().map(|v| v * v).sum::<f64>().sqrt();
     let (q, p) = stats::ljung_box(r, 20);
     let xc = stats::cross_correlation(r, &res.input, 50);
-    let (lag, xmax) = xc.iter().fold((0, 0.0f64), |(l, m), &(k, c)| if c.abs() > m { (k, c.abs()) } else { (l, m) });
+    let (lag, xmax) = xc.iter().fold(
+        (0, 0.0f64),
+        |(l, m), &(k, c)| if c.abs() > m { (k, c.abs()) } else { (l, m) },
+    );
 
     let by_time = (0..10)
         .map(|w| {
             let (lo, hi) = (w * n / 10, (w + 1) * n / 10);
-            bin(format!("t {:.3}..{:.3} s", res.time[lo], res.time[hi - 1]), &r[lo..hi])
+            bin(
+                format!("t {:.3}..{:.3} s", res.time[lo], res.time[hi - 1]),
+                &r[lo..hi],
+            )
         })
         .collect();
     let speed: Vec<f64> = res.velocity.iter().map(|v| v.abs()).collect();
@@ -159,20 +179,33 @@ pub fn compute(res: &Residual, period: Option<f64>) -> Metrics {
                 while j > 0 && res.velocity[j - 1].abs() <= guard {
                     j -= 1;
                 }
-                for k in j.saturating_sub(win)..(i + win).min(n) {
-                    near[k] = true;
-                }
+                near[j.saturating_sub(win)..(i + win).min(n)].fill(true);
             }
             last = s;
         }
     }
-    let near_v: Vec<f64> = r.iter().zip(&near).filter(|(_, &b)| b).map(|(e, _)| *e).collect();
-    let far_v: Vec<f64> = r.iter().zip(&near).filter(|(_, &b)| !b).map(|(e, _)| *e).collect();
+    let near_v: Vec<f64> = r
+        .iter()
+        .zip(&near)
+        .filter(|(_, &b)| b)
+        .map(|(e, _)| *e)
+        .collect();
+    let far_v: Vec<f64> = r
+        .iter()
+        .zip(&near)
+        .filter(|(_, &b)| !b)
+        .map(|(e, _)| *e)
+        .collect();
     let by_reversal = vec![
         bin(format!("within {win} samples of a reversal"), &near_v),
         bin("elsewhere".into(), &far_v),
     ];
-    let (xmin, xmx) = res.position.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    let (xmin, xmx) = res
+        .position
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
     let period = period.unwrap_or(((xmx - xmin) / 10.0).max(1e-12));
     let nb = 12;
     let mut groups = vec![Vec::new(); nb];
@@ -183,7 +216,16 @@ pub fn compute(res: &Residual, period: Option<f64>) -> Metrics {
     let by_position_phase = groups
         .iter()
         .enumerate()
-        .map(|(i, g)| bin(format!("phase {:.2}..{:.2}", i as f64 / nb as f64, (i + 1) as f64 / nb as f64), g))
+        .map(|(i, g)| {
+            bin(
+                format!(
+                    "phase {:.2}..{:.2}",
+                    i as f64 / nb as f64,
+                    (i + 1) as f64 / nb as f64
+                ),
+                g,
+            )
+        })
         .collect();
     let load: Vec<f64> = res.input.iter().map(|u| u.abs()).collect();
     let by_load = quantile_bins(&load, r, 4, "|input|");
@@ -194,7 +236,8 @@ pub fn compute(res: &Residual, period: Option<f64>) -> Metrics {
         max_abs,
         max_at_s: res.time[max_i],
         noise_floor_rms: res.noise_floor.unwrap_or_else(|| noise_floor(r)),
-        relative_error_percent: 100.0 * r.iter().map(|v| v * v).sum::<f64>().sqrt() / ynorm.max(1e-300),
+        relative_error_percent: 100.0 * r.iter().map(|v| v * v).sum::<f64>().sqrt()
+            / ynorm.max(1e-300),
         ljung_box_q: q,
         ljung_box_p: p,
         xcorr_input_max: xmax,
@@ -234,7 +277,11 @@ impl Metrics {
         ] {
             let _ = writeln!(s, "{title}:");
             for b in bins.iter() {
-                let _ = writeln!(s, "  {:<42} n={:<7} rms={:.4e} mean={:+.4e}", b.label, b.count, b.rms, b.mean);
+                let _ = writeln!(
+                    s,
+                    "  {:<42} n={:<7} rms={:.4e} mean={:+.4e}",
+                    b.label, b.count, b.rms, b.mean
+                );
             }
         }
         s

@@ -47,7 +47,12 @@ fn yes() -> bool {
 impl Param {
     /// A free parameter.
     pub fn free(name: &str, value: f64) -> Self {
-        Param { name: name.into(), value, free: true, sigma: None }
+        Param {
+            name: name.into(),
+            value,
+            free: true,
+            sigma: None,
+        }
     }
 }
 
@@ -125,7 +130,9 @@ impl Model {
 
     /// All parameters, in design order: inertia then effects.
     pub fn params(&self) -> Vec<&Param> {
-        std::iter::once(&self.inertia).chain(self.effects.iter().flat_map(|e| e.params.iter())).collect()
+        std::iter::once(&self.inertia)
+            .chain(self.effects.iter().flat_map(|e| e.params.iter()))
+            .collect()
     }
 
     /// Mutable parameters in the same order as [`Model::params`].
@@ -139,7 +146,8 @@ impl Model {
     pub fn load(path: &Path) -> Result<Self, ModelError> {
         let f = path.display().to_string();
         let s = std::fs::read_to_string(path).map_err(|e| ModelError::Io(f.clone(), e))?;
-        let m: Model = toml::from_str(&s).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
+        let m: Model =
+            toml::from_str(&s).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
         for e in &m.effects {
             let names = e.kind.param_names();
             if e.params.len() != names.len() {
@@ -158,7 +166,8 @@ impl Model {
     /// Save as TOML.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let f = path.display().to_string();
-        let s = toml::to_string_pretty(self).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
+        let s =
+            toml::to_string_pretty(self).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
         std::fs::write(path, s).map_err(|e| ModelError::Io(f, e))
     }
 }
@@ -169,7 +178,11 @@ impl EffectEntry {
         EffectEntry {
             kind,
             shape,
-            params: kind.param_names().iter().map(|n| Param::free(n, 0.0)).collect(),
+            params: kind
+                .param_names()
+                .iter()
+                .map(|n| Param::free(n, 0.0))
+                .collect(),
         }
     }
 }

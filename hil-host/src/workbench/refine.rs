@@ -97,7 +97,8 @@ pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape
     let d = residual::design(model, p);
     let g0i = gram_inverse(&gram(&d.cols));
     let base = fit::least_squares(&d.cols, &d.y).ok()?;
-    diagnose::scan_shape(kind, p, &d.cols, &g0i, &base.residual, base.rss.max(1e-300)).map(|(s, _)| s)
+    diagnose::scan_shape(kind, p, &d.cols, &g0i, &base.residual, base.rss.max(1e-300))
+        .map(|(s, _)| s)
 }
 
 /// Refit all free parameters of a model (LS; LM over smooth shapes of free effects).
@@ -107,17 +108,29 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
         .effects
         .iter()
         .enumerate()
-        .filter(|(_, e)| smooth_shape(e.kind, &e.shape).is_some() && e.params.iter().any(|q| q.free))
+        .filter(|(_, e)| {
+            smooth_shape(e.kind, &e.shape).is_some() && e.params.iter().any(|q| q.free)
+        })
         .map(|(i, _)| i)
         .collect();
     if lm_idx.is_empty() {
         return Ok(());
     }
     // x = [free amplitudes..., ln(shape) per LM effect]
-    let free: Vec<usize> = model.params().iter().enumerate().filter(|(_, q)| q.free).map(|(i, _)| i).collect();
+    let free: Vec<usize> = model
+        .params()
+        .iter()
+        .enumerate()
+        .filter(|(_, q)| q.free)
+        .map(|(i, _)| i)
+        .collect();
     let mut x0: Vec<f64> = free.iter().map(|&i| model.params()[i].value).collect();
     for &e in &lm_idx {
-        x0.push(smooth_shape(model.effects[e].kind, &model.effects[e].shape).unwrap_or(1.0).ln());
+        x0.push(
+            smooth_shape(model.effects[e].kind, &model.effects[e].shape)
+                .unwrap_or(1.0)
+                .ln(),
+        );
     }
     let nf = free.len();
     let template = model.clone();
@@ -143,7 +156,11 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
         &x0,
         30,
     );
-    let before: f64 = residual::equation_error(model, p).residual.iter().map(|v| v * v).sum();
+    let before: f64 = residual::equation_error(model, p)
+        .residual
+        .iter()
+        .map(|v| v * v)
+        .sum();
     let after: f64 = lm.residual.iter().map(|v| v * v).sum();
     if after < before {
         let mut m = apply(&lm.x);
@@ -176,7 +193,12 @@ pub fn param_rows(model: &Model) -> Vec<ParamRow> {
             });
         }
         if let Some(v) = smooth_shape(e.kind, &e.shape) {
-            rows.push(ParamRow { owner: e.kind.name().into(), name: "shape".into(), value: v, sigma: 0.0 });
+            rows.push(ParamRow {
+                owner: e.kind.name().into(),
+                name: "shape".into(),
+                value: v,
+                sigma: 0.0,
+            });
         }
     }
     rows
@@ -184,7 +206,12 @@ pub fn param_rows(model: &Model) -> Vec<ParamRow> {
 
 /// Add `kind` (if given) at its best grid shape, refit everything free, and score before and
 /// after on estimation and validation data.
-pub fn fit_add(model: &mut Model, p: &Prepared, kind: Option<EffectKind>, validation: Option<&Prepared>) -> Result<FitReport, fit::FitError> {
+pub fn fit_add(
+    model: &mut Model,
+    p: &Prepared,
+    kind: Option<EffectKind>,
+    validation: Option<&Prepared>,
+) -> Result<FitReport, fit::FitError> {
     residual::refit(model, p)?;
     let before = score(model, p);
     let before_validation = validation.map(|v| score(model, v));
@@ -230,7 +257,13 @@ pub struct AutoRun {
 }
 
 /// Rank → add → refit until nothing significant is left (at most `max_steps` additions).
-pub fn auto(model: &mut Model, p: &Prepared, validation: Option<&Prepared>, opts: &Options, max_steps: usize) -> Result<AutoRun, fit::FitError> {
+pub fn auto(
+    model: &mut Model,
+    p: &Prepared,
+    validation: Option<&Prepared>,
+    opts: &Options,
+    max_steps: usize,
+) -> Result<AutoRun, fit::FitError> {
     refit_all(model, p)?;
     let mut steps = vec![AutoStep {
         step: 0,
@@ -248,7 +281,11 @@ pub fn auto(model: &mut Model, p: &Prepared, validation: Option<&Prepared>, opts
         if steps.len() > max_steps {
             return Ok(AutoRun { steps, last: d });
         }
-        let c = d.candidates.iter().find(|c| c.effect == name).expect("winner is a candidate");
+        let c = d
+            .candidates
+            .iter()
+            .find(|c| c.effect == name)
+            .expect("winner is a candidate");
         let kind = c.kind.expect("kind");
         model.add(kind, c.shape);
         refit_all(model, p)?;

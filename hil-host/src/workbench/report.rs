@@ -41,7 +41,13 @@ pub struct Chart {
     pub series: Vec<Series>,
 }
 
-const COLORS: [RGBColor; 5] = [RGBColor(31, 119, 180), RGBColor(214, 39, 40), RGBColor(44, 160, 44), RGBColor(148, 103, 189), RGBColor(255, 127, 14)];
+const COLORS: [RGBColor; 5] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+];
 
 fn thin(points: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
     if points.len() <= max {
@@ -57,7 +63,12 @@ where
 {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let all = c.series.iter().flat_map(|s| s.points.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for &(x, y) in all {
         if x.is_finite() && y.is_finite() {
             x0 = x0.min(x);
@@ -93,13 +104,20 @@ where
         let col = COLORS[i % COLORS.len()];
         if s.scatter {
             chart
-                .draw_series(s.points.iter().map(|&(x, y)| Circle::new((x, y), 1, col.filled())))
+                .draw_series(
+                    s.points
+                        .iter()
+                        .map(|&(x, y)| Circle::new((x, y), 1, col.filled())),
+                )
                 .map_err(|e| e.to_string())?
                 .label(&s.name)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, col.filled()));
         } else {
             chart
-                .draw_series(LineSeries::new(s.points.iter().copied(), col.stroke_width(1)))
+                .draw_series(LineSeries::new(
+                    s.points.iter().copied(),
+                    col.stroke_width(1),
+                ))
                 .map_err(|e| e.to_string())?
                 .label(&s.name)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
@@ -172,7 +190,9 @@ pub fn welch(x: &[f64], dt: f64) -> Vec<(f64, f64)> {
     while nseg > x.len() && nseg > 16 {
         nseg /= 2;
     }
-    let w: Vec<f64> = (0..nseg).map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / nseg as f64).cos()).collect();
+    let w: Vec<f64> = (0..nseg)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / nseg as f64).cos())
+        .collect();
     let wss: f64 = w.iter().map(|v| v * v).sum();
     let mut acc = vec![0.0; nseg / 2 + 1];
     let mut count = 0;
@@ -190,7 +210,9 @@ pub fn welch(x: &[f64], dt: f64) -> Vec<(f64, f64)> {
         start += nseg / 2;
     }
     let scale = dt / (wss * count.max(1) as f64);
-    (1..=nseg / 2).map(|k| (k as f64 / (nseg as f64 * dt), acc[k] * scale * 2.0)).collect()
+    (1..=nseg / 2)
+        .map(|k| (k as f64 / (nseg as f64 * dt), acc[k] * scale * 2.0))
+        .collect()
 }
 
 /// The five standard charts for a residual.
@@ -199,10 +221,26 @@ pub fn charts(res: &Residual, m: &Metrics, unit: &str) -> Vec<Chart> {
     let t = &res.time;
     let r = &res.residual;
     let zip = |a: &[f64], b: &[f64]| a.iter().copied().zip(b.iter().copied()).collect::<Vec<_>>();
-    let what = if res.mode == super::residual::Mode::Equation { "input" } else { "position" };
-    let dt = if t.len() > 1 { (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64 } else { 1.0 };
-    let spec: Vec<(f64, f64)> = welch(r, dt).into_iter().map(|(f, p)| (f, p.max(1e-300).log10())).collect();
-    let folded: Vec<(f64, f64)> = res.position.iter().zip(r).map(|(x, e)| ((x / m.phase_period).rem_euclid(1.0), *e)).collect();
+    let what = if res.mode == super::residual::Mode::Equation {
+        "input"
+    } else {
+        "position"
+    };
+    let dt = if t.len() > 1 {
+        (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+    } else {
+        1.0
+    };
+    let spec: Vec<(f64, f64)> = welch(r, dt)
+        .into_iter()
+        .map(|(f, p)| (f, p.max(1e-300).log10()))
+        .collect();
+    let folded: Vec<(f64, f64)> = res
+        .position
+        .iter()
+        .zip(r)
+        .map(|(x, e)| ((x / m.phase_period).rem_euclid(1.0), *e))
+        .collect();
     vec![
         Chart {
             id: "overlay".into(),
@@ -210,8 +248,16 @@ pub fn charts(res: &Residual, m: &Metrics, unit: &str) -> Vec<Chart> {
             x_label: "time [s]".into(),
             y_label: format!("{what} [{unit}]"),
             series: vec![
-                Series { name: "measured".into(), points: thin(zip(t, &res.measured), MAX), scatter: false },
-                Series { name: "model".into(), points: thin(zip(t, &res.predicted), MAX), scatter: false },
+                Series {
+                    name: "measured".into(),
+                    points: thin(zip(t, &res.measured), MAX),
+                    scatter: false,
+                },
+                Series {
+                    name: "model".into(),
+                    points: thin(zip(t, &res.predicted), MAX),
+                    scatter: false,
+                },
             ],
         },
         Chart {
@@ -219,39 +265,63 @@ pub fn charts(res: &Residual, m: &Metrics, unit: &str) -> Vec<Chart> {
             title: "residual vs time".into(),
             x_label: "time [s]".into(),
             y_label: format!("residual [{unit}]"),
-            series: vec![Series { name: "residual".into(), points: thin(zip(t, r), MAX), scatter: false }],
+            series: vec![Series {
+                name: "residual".into(),
+                points: thin(zip(t, r), MAX),
+                scatter: false,
+            }],
         },
         Chart {
             id: "residual_velocity".into(),
             title: "residual vs velocity".into(),
             x_label: "velocity".into(),
             y_label: format!("residual [{unit}]"),
-            series: vec![Series { name: "residual".into(), points: thin(zip(&res.velocity, r), MAX), scatter: true }],
+            series: vec![Series {
+                name: "residual".into(),
+                points: thin(zip(&res.velocity, r), MAX),
+                scatter: true,
+            }],
         },
         Chart {
             id: "residual_position".into(),
             title: format!("residual vs position, folded on {:.4e}", m.phase_period),
             x_label: "position phase [periods]".into(),
             y_label: format!("residual [{unit}]"),
-            series: vec![Series { name: "residual".into(), points: thin(folded, MAX), scatter: true }],
+            series: vec![Series {
+                name: "residual".into(),
+                points: thin(folded, MAX),
+                scatter: true,
+            }],
         },
         Chart {
             id: "residual_spectrum".into(),
             title: "residual spectrum (Welch)".into(),
             x_label: "frequency [Hz]".into(),
             y_label: "log10 PSD".into(),
-            series: vec![Series { name: "PSD".into(), points: spec, scatter: false }],
+            series: vec![Series {
+                name: "PSD".into(),
+                points: spec,
+                scatter: false,
+            }],
         },
     ]
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// Write SVGs (and PNGs if asked) of `charts` into `dir`, plus `report.html` with the charts
 /// inlined and `sections` (title, preformatted text) above them. Returns the HTML path.
-pub fn write(dir: &Path, title: &str, sections: &[(String, String)], charts: &[Chart], with_png: bool) -> Result<PathBuf, String> {
+pub fn write(
+    dir: &Path,
+    title: &str,
+    sections: &[(String, String)],
+    charts: &[Chart],
+    with_png: bool,
+) -> Result<PathBuf, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let mut html = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>{t}</title><style>body{{font-family:sans-serif;max-width:1000px;margin:auto}}pre{{background:#f4f4f4;padding:8px;overflow-x:auto}}</style></head><body><h1>{t}</h1>\n",
@@ -267,7 +337,12 @@ pub fn write(dir: &Path, title: &str, sections: &[(String, String)], charts: &[C
         if with_png {
             png(c, &dir.join(format!("{}.png", c.id)))?;
         }
-        html.push_str(&format!("<h2 id=\"{}\">{}</h2>\n{}\n", c.id, esc(&c.title), s));
+        html.push_str(&format!(
+            "<h2 id=\"{}\">{}</h2>\n{}\n",
+            c.id,
+            esc(&c.title),
+            s
+        ));
     }
     html.push_str("</body></html>\n");
     let p = dir.join("report.html");
@@ -282,9 +357,14 @@ mod tests {
     #[test]
     fn welch_finds_a_sine() {
         let dt = 1e-3;
-        let x: Vec<f64> = (0..8192).map(|i| (2.0 * std::f64::consts::PI * 50.0 * i as f64 * dt).sin()).collect();
+        let x: Vec<f64> = (0..8192)
+            .map(|i| (2.0 * std::f64::consts::PI * 50.0 * i as f64 * dt).sin())
+            .collect();
         let s = welch(&x, dt);
-        let peak = s.iter().cloned().fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        let peak = s
+            .iter()
+            .cloned()
+            .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         assert!((peak.0 - 50.0).abs() < 1.5, "{peak:?}");
     }
 }

@@ -135,7 +135,12 @@ fn instrument(p: &Prepared) -> Vec<f64> {
         vec![1.0; n],
     ];
     match fit::least_squares(&cols, &p.input) {
-        Ok(f) => p.input.iter().zip(&f.residual).map(|(u, e)| u - e).collect(),
+        Ok(f) => p
+            .input
+            .iter()
+            .zip(&f.residual)
+            .map(|(u, e)| u - e)
+            .collect(),
         Err(_) => p.input.clone(),
     }
 }
@@ -253,7 +258,13 @@ pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
 /// single sample and so contribute their memoryless part only.
 pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -> f64 {
     let (xs, vs, as_, us) = ([x], [v], [a], [u]);
-    let t = Trajectory { dt, input: &us, position: &xs, velocity: &vs, acceleration: &as_ };
+    let t = Trajectory {
+        dt,
+        input: &us,
+        position: &xs,
+        velocity: &vs,
+        acceleration: &as_,
+    };
     let mut f = 0.0;
     for e in &model.effects {
         for (c, par) in fingerprint(e.kind, &t, &e.shape).iter().zip(&e.params) {
@@ -303,7 +314,12 @@ pub fn output_error(model: &Model, p: &Prepared) -> Residual {
         mode: Mode::Output,
         time: p.time.clone(),
         measured: p.raw_position.clone(),
-        residual: p.raw_position.iter().zip(&sim).map(|(a, b)| a - b).collect(),
+        residual: p
+            .raw_position
+            .iter()
+            .zip(&sim)
+            .map(|(a, b)| a - b)
+            .collect(),
         predicted: sim,
         velocity: p.velocity.clone(),
         position: p.position.clone(),

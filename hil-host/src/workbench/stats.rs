@@ -183,7 +183,12 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
             if c0 == 0.0 {
                 return if k == 0 { 1.0 } else { 0.0 };
             }
-            d[k..].iter().zip(&d[..n - k]).map(|(a, b)| a * b).sum::<f64>() / c0
+            d[k..]
+                .iter()
+                .zip(&d[..n - k])
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                / c0
         })
         .collect()
 }
@@ -192,7 +197,11 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
 pub fn ljung_box(x: &[f64], h: usize) -> (f64, f64) {
     let n = x.len() as f64;
     let r = autocorrelation(x, h);
-    let q = n * (n + 2.0) * (1..r.len()).map(|k| r[k] * r[k] / (n - k as f64)).sum::<f64>();
+    let q = n
+        * (n + 2.0)
+        * (1..r.len())
+            .map(|k| r[k] * r[k] / (n - k as f64))
+            .sum::<f64>();
     (q, chi2_sf(q, h as f64))
 }
 

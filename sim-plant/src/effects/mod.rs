@@ -102,15 +102,21 @@ impl EffectKind {
             EffectKind::Viscous => "viscous friction: residual ∝ velocity",
             EffectKind::Coulomb => "Coulomb friction: residual ±Fc flipping at velocity reversals",
             EffectKind::Asymmetry => "direction asymmetry: residual ∝ |velocity| (B+ ≠ B−)",
-            EffectKind::Stribeck => "Stribeck/stiction: residual peaks near velocity zero, decays with speed",
+            EffectKind::Stribeck => {
+                "Stribeck/stiction: residual peaks near velocity zero, decays with speed"
+            }
             EffectKind::Backlash => "backlash: load decoupled for a gap width after each reversal",
-            EffectKind::Compliance => "compliance: residual ∝ 4th derivative of motor position (resonance)",
+            EffectKind::Compliance => {
+                "compliance: residual ∝ 4th derivative of motor position (resonance)"
+            }
             EffectKind::Ripple => "transmission ripple: residual periodic in output position",
             EffectKind::Cogging => "motor cogging: residual periodic in rotor angle",
             EffectKind::Gravity => "gravity: residual ∝ sin/cos of joint angle",
             EffectKind::Deadband => "input dead zone: residual ≈ saturated input near zero command",
             EffectKind::Delay => "input delay: residual ∝ input rate",
-            EffectKind::Quantization => "input quantisation: sawtooth residual in the commanded input",
+            EffectKind::Quantization => {
+                "input quantisation: sawtooth residual in the commanded input"
+            }
         }
     }
 
@@ -123,7 +129,10 @@ impl EffectKind {
     /// for the effect (it is usually errors-in-variables bias from noisy derivatives).
     pub fn admissible_sign(self) -> Option<f64> {
         match self {
-            EffectKind::Viscous | EffectKind::Coulomb | EffectKind::Stribeck | EffectKind::Delay => Some(1.0),
+            EffectKind::Viscous
+            | EffectKind::Coulomb
+            | EffectKind::Stribeck
+            | EffectKind::Delay => Some(1.0),
             EffectKind::Deadband | EffectKind::Quantization => Some(1.0),
             EffectKind::Compliance | EffectKind::Backlash => Some(-1.0),
             _ => None,
@@ -314,7 +323,9 @@ pub fn fingerprint(kind: EffectKind, t: &Trajectory, s: &Shape) -> Vec<Vec<f64>>
                 (1.0 - f) * g(j as isize) + f * g(j as isize + 1)
             };
             let half = 0.5 * s.delay.max(0.0) / t.dt;
-            vec![(0..n).map(|i| at(i as f64 + half) - at(i as f64 - half)).collect()]
+            vec![(0..n)
+                .map(|i| at(i as f64 + half) - at(i as f64 - half))
+                .collect()]
         }
         EffectKind::Quantization => {
             let q = s.quantum.max(1e-300);
@@ -342,13 +353,18 @@ pub fn shape_grid(kind: EffectKind, t: &Trajectory) -> Vec<Shape> {
     let (xmin, xmax) = t
         .position
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
     let range = (xmax - xmin).max(0.0);
     let umax = t.input.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     match kind {
         EffectKind::Stribeck if vmax > 0.0 => logspace(0.005 * vmax, 0.3 * vmax, 12)
             .into_iter()
-            .map(|vs| Shape { stribeck_velocity: vs, ..base })
+            .map(|vs| Shape {
+                stribeck_velocity: vs,
+                ..base
+            })
             .collect(),
         EffectKind::Ripple if range > 0.0 => {
             // Spatial frequencies spaced by a quarter cycle over the travel: two periods closer
@@ -356,16 +372,25 @@ pub fn shape_grid(kind: EffectKind, t: &Trajectory) -> Vec<Shape> {
             let f0 = 2.0 / range;
             let df = 0.25 / range;
             (0..233)
-                .map(|i| Shape { ripple_period: 1.0 / (f0 + df * i as f64), ..base })
+                .map(|i| Shape {
+                    ripple_period: 1.0 / (f0 + df * i as f64),
+                    ..base
+                })
                 .collect()
         }
         EffectKind::Backlash if range > 0.0 => logspace(range * 1e-3, range * 0.1, 10)
             .into_iter()
-            .map(|w| Shape { backlash_width: w, ..base })
+            .map(|w| Shape {
+                backlash_width: w,
+                ..base
+            })
             .collect(),
         EffectKind::Deadband if umax > 0.0 => logspace(umax * 0.01, umax * 0.3, 8)
             .into_iter()
-            .map(|d| Shape { deadband_width: d, ..base })
+            .map(|d| Shape {
+                deadband_width: d,
+                ..base
+            })
             .collect(),
         EffectKind::Quantization if umax > 0.0 => logspace(umax * 0.005, umax * 0.2, 10)
             .into_iter()

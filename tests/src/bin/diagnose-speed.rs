@@ -28,7 +28,10 @@ fn main() {
         best = best.min(t0.elapsed().as_secs_f64());
         verdict = d.verdict.text.clone();
     }
-    println!("diagnose on N = {n} samples, {} library effects: {best:.3} s (best of 3)", sim_plant::effects::EffectKind::ALL.len());
+    println!(
+        "diagnose on N = {n} samples, {} library effects: {best:.3} s (best of 3)",
+        sim_plant::effects::EffectKind::ALL.len()
+    );
     println!("verdict: {verdict}");
     if best > 1.0 {
         println!("SLOWER than the 1 s budget");

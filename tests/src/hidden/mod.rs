@@ -118,7 +118,10 @@ struct Excitation {
 
 /// Differentiator cut-off for the trials [Hz] (`HIDDEN_CUTOFF` overrides, for experiments).
 pub fn cutoff() -> Option<f64> {
-    std::env::var("HIDDEN_CUTOFF").ok().and_then(|s| s.parse().ok()).or(Some(CUTOFF_HZ))
+    std::env::var("HIDDEN_CUTOFF")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .or(Some(CUTOFF_HZ))
 }
 
 /// The trials' differentiator cut-off: 5× above the fastest reference component and the
@@ -160,15 +163,24 @@ fn excitation(rng: &mut ChaCha8Rng, j: f64, noise_u: f64) -> Excitation {
     for _ in 0..3 {
         let w = 25;
         let c = r.clone();
-        for i in 0..n {
+        for (i, ri) in r.iter_mut().enumerate() {
             let (lo, hi) = (i.saturating_sub(w), (i + w).min(n - 1));
-            r[i] = c[lo..=hi].iter().sum::<f64>() / (hi - lo + 1) as f64;
+            *ri = c[lo..=hi].iter().sum::<f64>() / (hi - lo + 1) as f64;
         }
     }
-    let vel: Vec<f64> = (0..n).map(|i| (r[(i + 1).min(n - 1)] - r[i.saturating_sub(1)]) / (2.0 * DT)).collect();
-    let acc: Vec<f64> = (0..n).map(|i| (vel[(i + 1).min(n - 1)] - vel[i.saturating_sub(1)]) / (2.0 * DT)).collect();
+    let vel: Vec<f64> = (0..n)
+        .map(|i| (r[(i + 1).min(n - 1)] - r[i.saturating_sub(1)]) / (2.0 * DT))
+        .collect();
+    let acc: Vec<f64> = (0..n)
+        .map(|i| (vel[(i + 1).min(n - 1)] - vel[i.saturating_sub(1)]) / (2.0 * DT))
+        .collect();
     let feedforward = rng.random_bool(0.5);
-    let wc = std::f64::consts::TAU * if feedforward { log_uniform(rng, 0.5, 2.0) } else { log_uniform(rng, 3.0, 8.0) };
+    let wc = std::f64::consts::TAU
+        * if feedforward {
+            log_uniform(rng, 0.5, 2.0)
+        } else {
+            log_uniform(rng, 3.0, 8.0)
+        };
     let dn = Normal::new(0.0, 1.0).expect("normal");
     let dither_level = log_uniform(rng, 0.1, 0.5) * j;
     Excitation {
@@ -197,7 +209,15 @@ pub fn draw(seed: u64) -> Draw {
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let est = excitation(&mut rng, j1 + j2, noise_u);
     let val = excitation(&mut rng, j1 + j2, noise_u);
-    Draw { base, shape, phase, sign, est, val, noise_u }
+    Draw {
+        base,
+        shape,
+        phase,
+        sign,
+        est,
+        val,
+        noise_u,
+    }
 }
 
 /// The plant with `family` at amplitude `a` (the unit depends on the family).
@@ -265,7 +285,13 @@ impl Controller for Pd<'_> {
 
 /// Simulate one record of plant `p` under excitation `e`.
 fn record(p: &Plant, e: &Excitation, label: &str) -> Recording {
-    let mut ctl = Pd { e, prev: e.reference[0], vf: 0.0, j: p.j1 + p.j2, b: p.b_pos };
+    let mut ctl = Pd {
+        e,
+        prev: e.reference[0],
+        vf: 0.0,
+        j: p.j1 + p.j2,
+        b: p.b_pos,
+    };
     let mut k = 0;
     let mut sense = |x: f64| {
         let m = ENCODER * ((x + e.sensor_noise[k]) / ENCODER).round();
@@ -278,10 +304,26 @@ fn record(p: &Plant, e: &Excitation, label: &str) -> Recording {
         j += 1;
         m
     };
-    let m = truth::simulate(p, &mut ctl, N, DT, 10, e.reference[0], &mut sense, &mut log);
+    let m = truth::simulate(
+        p,
+        &mut ctl,
+        N,
+        DT,
+        10,
+        e.reference[0],
+        truth::Sensors {
+            control: &mut sense,
+            log: &mut log,
+        },
+    );
     Recording {
         path: label.into(),
-        input: m.command.iter().zip(&e.input_noise).map(|(u, n)| u + n).collect(),
+        input: m
+            .command
+            .iter()
+            .zip(&e.input_noise)
+            .map(|(u, n)| u + n)
+            .collect(),
         time: m.time,
         output: m.motor_position,
         load_output: None,
@@ -307,7 +349,10 @@ fn fitted_rms(model: &Model, p: &Prepared) -> (f64, Model) {
         return (f64::NAN, m);
     }
     let r = residual::equation_error(&m, p).residual;
-    ((r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt(), m)
+    (
+        (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt(),
+        m,
+    )
 }
 
 fn rho(b: f64, floor: f64) -> f64 {
@@ -355,7 +400,12 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
     let rv = residual::equation_error(&m0, &pv0).residual;
     let floor_val = (rv.iter().map(|v| v * v).sum::<f64>() / rv.len() as f64).sqrt();
     let travel = {
-        let (lo, hi) = pe0.position.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        let (lo, hi) = pe0
+            .position
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
         hi - lo
     };
     let mean_speed = pe0.velocity.iter().map(|v| v.abs()).sum::<f64>() / pe0.len() as f64;
@@ -392,11 +442,25 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
     let val = record(&plant, &d.val, &format!("hidden seed {seed} val"));
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
-    let bounded = |rec: &Recording| rec.output.iter().chain(&rec.input).all(|x| x.is_finite() && x.abs() < 1e6) && rec.output.iter().all(|x| x.abs() < 50.0);
+    let bounded = |rec: &Recording| {
+        rec.output
+            .iter()
+            .chain(&rec.input)
+            .all(|x| x.is_finite() && x.abs() < 1e6)
+            && rec.output.iter().all(|x| x.abs() < 50.0)
+    };
     if !r.is_finite() || r > 20.0 * target_rho.max(1.0) || !bounded(&est) || !bounded(&val) {
         return None;
     }
-    Some(Trial { families: families.to_vec(), rho: r, est, val, floor_est, floor_val, noise_u: d.noise_u })
+    Some(Trial {
+        families: families.to_vec(),
+        rho: r,
+        est,
+        val,
+        floor_est,
+        floor_val,
+        noise_u: d.noise_u,
+    })
 }
 
 /// What one trial showed.
@@ -427,7 +491,11 @@ impl Outcome {
     }
     /// Both hidden effects were added by `--auto`.
     pub fn pair_ok(&self) -> bool {
-        self.families.len() == 2 && self.families.iter().all(|f| self.auto_added.iter().any(|a| a == f.name()))
+        self.families.len() == 2
+            && self
+                .families
+                .iter()
+                .all(|f| self.auto_added.iter().any(|a| a == f.name()))
     }
 }
 
@@ -442,7 +510,12 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
     let opts = Options::default();
     let d = diagnose(&model, &pe, &opts);
     if std::env::var_os("HIDDEN_DEBUG").is_some() {
-        eprintln!("ρ = {:.2}, floor {:.3e}\n{}", t.rho, t.floor_est, d.to_text());
+        eprintln!(
+            "ρ = {:.2}, floor {:.3e}\n{}",
+            t.rho,
+            t.floor_est,
+            d.to_text()
+        );
     }
     let mut out = Outcome {
         families: families.to_vec(),
@@ -462,7 +535,12 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
             let mut m = model.clone();
             let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).ok()?;
             out.auto_added = run.steps.iter().filter_map(|s| s.added.clone()).collect();
-            out.val_ratio = run.steps.last().and_then(|s| s.validation).map(|v| v.rms / t.floor_val).unwrap_or(f64::NAN);
+            out.val_ratio = run
+                .steps
+                .last()
+                .and_then(|s| s.validation)
+                .map(|v| v.rms / t.floor_val)
+                .unwrap_or(f64::NAN);
         }
         _ => {}
     }
@@ -476,7 +554,9 @@ pub fn long_record(seed: u64, repeats: usize) -> Recording {
     let mut s = seed;
     while out.as_ref().map_or(0, |r| r.len()) < repeats * N {
         s += 1;
-        let Some(t) = generate(s, &[Family::Coulomb], 2.0) else { continue };
+        let Some(t) = generate(s, &[Family::Coulomb], 2.0) else {
+            continue;
+        };
         match &mut out {
             None => out = Some(t.est),
             Some(r) => {

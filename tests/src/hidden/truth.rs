@@ -105,8 +105,13 @@ impl Plant {
             0.0
         };
         let dz = 0.0;
-        let visc = if v2 >= 0.0 { self.b_pos * v2 } else { self.b_neg * v2 };
-        let ripple = self.ripple_amp * (std::f64::consts::TAU * x2 / self.ripple_period + self.ripple_phase).sin();
+        let visc = if v2 >= 0.0 {
+            self.b_pos * v2
+        } else {
+            self.b_neg * v2
+        };
+        let ripple = self.ripple_amp
+            * (std::f64::consts::TAU * x2 / self.ripple_period + self.ripple_phase).sin();
         let grav = self.gravity * (x2 + self.gravity_phase).sin();
         let load = spring - fz - visc - ripple - grav - self.offset;
         [v1, (tau - spring) / self.j1, v2, load / self.j2, dz]
@@ -159,9 +164,16 @@ pub struct Measured {
     pub load_position: Vec<f64>,
 }
 
+/// The two views of the motor encoder.
+#[allow(missing_debug_implementations)]
+pub struct Sensors<'a> {
+    /// What the controller measures at the start of each sample.
+    pub control: &'a mut dyn FnMut(f64) -> f64,
+    /// What the recording holds (taken mid-sample).
+    pub log: &'a mut dyn FnMut(f64) -> f64,
+}
+
 /// Integrate the plant for `n` samples of `dt`, `sub` RK4 sub-steps per sample.
-/// `sense` maps the true motor position to what the controller measures at the start of each
-/// sample; `log` to what the recording holds (taken mid-sample).
 pub fn simulate(
     p: &Plant,
     ctl: &mut dyn Controller,
@@ -169,9 +181,12 @@ pub fn simulate(
     dt: f64,
     sub: usize,
     x0: f64,
-    sense: &mut dyn FnMut(f64) -> f64,
-    log: &mut dyn FnMut(f64) -> f64,
+    sensors: Sensors,
 ) -> Measured {
+    let Sensors {
+        control: sense,
+        log,
+    } = sensors;
     let mut s = [x0, 0.0, x0, 0.0, 0.0];
     let mut out = Measured {
         time: Vec::with_capacity(n),
@@ -200,7 +215,11 @@ pub fn simulate(
             let applied = |tt: f64| -> f64 {
                 let td = tt - p.delay;
                 let idx = (td / dt).floor();
-                let v = if idx < 0.0 { hist[0] } else { hist[(idx as usize).min(hist.len() - 1)] };
+                let v = if idx < 0.0 {
+                    hist[0]
+                } else {
+                    hist[(idx as usize).min(hist.len() - 1)]
+                };
                 if p.quantum > 0.0 {
                     p.quantum * (v / p.quantum).round()
                 } else {
