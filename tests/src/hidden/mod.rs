@@ -552,7 +552,7 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
 pub fn long_record(seed: u64, repeats: usize) -> Recording {
     let mut out: Option<Recording> = None;
     let mut s = seed;
-    while out.as_ref().map_or(0, |r| r.len()) < repeats * N {
+    while out.as_ref().map_or(0, |r| r.input.len()) < repeats * N {
         s += 1;
         let Some(t) = generate(s, &[Family::Coulomb], 2.0) else {
             continue;
