@@ -58,9 +58,10 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
             out.len()
         );
         if matches!(f, Family::Offset | Family::Asymmetry | Family::Ripple) {
-            // Refit-to-noise-floor is asserted only where the bench meets it (≥ 89 %): static
-            // Coulomb cannot represent LuGre pre-sliding (31 %), the delay refit reaches 65 %
-            // and gravity 93 %; all measured by the bench, see docs/workbench.md.
+            // Refit-to-noise-floor is asserted only where the bench mostly meets it (offset and
+            // asymmetry 100 %, ripple 81.5 %, one miss allowed): static Coulomb cannot
+            // represent LuGre pre-sliding (38 %), the delay refit reaches 20 % and gravity
+            // 96 %; all measured by the bench (40 per family, real library), docs/workbench.md.
             let fit_ok = out.iter().filter(|o| o.val_ratio <= 1.1).count();
             assert!(
                 fit_ok + 1 >= out.len(),

@@ -18,8 +18,9 @@
 //! friction parameter is the force it consumes (EMPS: `offset = −3.16 N` means the drive
 //! needs 3.16 N less than a symmetric model would).
 //!
-//! This type lives here until `sim-plant`'s model TOML types land; its field names follow the
-//! effect library (`EffectKind::name`, `param_names`, `Shape`).
+//! Its field names follow the effect library (`EffectKind::name`, `param_names`, `Shape`).
+//! TODO: `sim_plant::Model` (the simulator's model TOML) has landed; the workbench should read
+//! and write that type instead of this one (one model file format for simulator and fitter).
 
 use serde::{Deserialize, Serialize};
 use sim_plant::effects::{EffectKind, Shape};
