@@ -8,3 +8,4 @@ pub mod bus;
 pub mod candump;
 pub mod cli;
 pub mod lab;
+pub mod workbench;

@@ -1,1 +1,3 @@
 //! End-to-end tests across crates live in `tests/tests/`; shared fixtures live here.
+
+pub mod hidden;

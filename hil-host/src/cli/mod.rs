@@ -1,8 +1,12 @@
 //! The `hil-host` command line: one subcommand enum, one module per command group.
+//!
+//! To add a command group, add a module here with its `Args` structs and a `run`, then one
+//! variant per command in [`Command`] and one arm in [`run`]. Nothing in the workbench modules needs to change.
 
 use clap::{Parser, Subcommand};
 
 pub mod lab;
+pub mod workbench;
 
 /// jointlab host: HIL lab and model-vs-measurement workbench.
 #[derive(Debug, Parser)]
@@ -37,6 +41,15 @@ pub enum Command {
     /// Lockstep cycles per second and bus load.
     #[command(after_help = lab::BENCH_EXAMPLES)]
     Bench(lab::BenchArgs),
+    /// Compare a model with a recording: fit %, RMS, noise floor, where the error lives, plots, HTML.
+    #[command(after_help = workbench::COMPARE_EXAMPLES)]
+    Compare(workbench::CompareArgs),
+    /// Rank the library effects the model is missing (statistical tests, Holm), or `--auto` add them.
+    #[command(after_help = workbench::DIAGNOSE_EXAMPLES)]
+    Diagnose(workbench::DiagnoseArgs),
+    /// Add an effect, refit all free parameters (±1σ), report the error before/after, write the model.
+    #[command(after_help = workbench::FIT_EXAMPLES)]
+    Fit(workbench::FitArgs),
 }
 
 /// Parse the command line and run; the process exit code.
@@ -61,5 +74,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Supervise(a) => lab::supervise(a),
         Command::Replay(a) => lab::replay(a),
         Command::Bench(a) => lab::bench(a),
+        Command::Compare(a) => workbench::compare(a),
+        Command::Diagnose(a) => workbench::diagnose(a),
+        Command::Fit(a) => workbench::fit(a),
     }
 }

@@ -1,0 +1,456 @@
+//! `compare`, `diagnose`, `fit`: the workbench commands.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use sim_plant::effects::EffectKind;
+
+use crate::workbench::data::{self, Columns};
+use crate::workbench::diagnose::{self, Options};
+use crate::workbench::metrics;
+use crate::workbench::model::Model;
+use crate::workbench::refine::{self, AutoRun, FitReport};
+use crate::workbench::report::{self, Chart, Series};
+use crate::workbench::residual::{self, Mode, Prepared};
+
+/// Examples for `compare --help`.
+pub const COMPARE_EXAMPLES: &str = "Examples:
+  # EMPS: default baseline (rigid mass + viscous, fitted), equation error, report in emps-report/
+  hil-host compare ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
+      --input-gain 35.15065188248547 --output qm_m --out emps-report
+  # a fitted model on validation data, simulation (output) error, PNGs as well
+  hil-host compare run.csv --input torque_Nm --output q_rad --model fitted.toml --residual output --png";
+
+/// Examples for `diagnose --help`.
+pub const DIAGNOSE_EXAMPLES: &str = "Examples:
+  hil-host diagnose ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
+      --input-gain 35.15065188248547 --output qm_m --json
+  # add effects until nothing significant is left; table, plot, final model
+  hil-host diagnose run.csv --input torque_Nm --output q_rad --auto --validate val.csv \\
+      --save-model auto.toml --out auto-report";
+
+/// Examples for `fit --help`.
+pub const FIT_EXAMPLES: &str = "Examples:
+  hil-host fit ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
+      --input-gain 35.15065188248547 --output qm_m --add coulomb --save-model emps1.toml
+  hil-host fit ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
+      --input-gain 35.15065188248547 --output qm_m --model emps1.toml --add offset \\
+      --validate ../shared/data/real/emps/DATA_EMPS_PULSES.csv --save-model emps2.toml";
+
+/// Residual choice.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ResidualArg {
+    /// Inverse dynamics: predicted vs measured input.
+    Equation,
+    /// Simulation: simulated vs measured position.
+    Output,
+}
+
+/// Recording and model options shared by every workbench command.
+#[derive(Debug, Args)]
+pub struct DataArgs {
+    /// Recording (CSV with a header row).
+    pub file: PathBuf,
+    /// Input column (force/torque, or a command scaled by --input-gain).
+    #[arg(long)]
+    pub input: String,
+    /// Output (position) column.
+    #[arg(long)]
+    pub output: String,
+    /// Optional load-side position column.
+    #[arg(long)]
+    pub load_output: Option<String>,
+    /// Time column.
+    #[arg(long, default_value = "time_s")]
+    pub time: String,
+    /// Gain from the input column to force/torque (e.g. EMPS gtau = 35.15065188248547 N/V).
+    #[arg(long, default_value_t = 1.0)]
+    pub input_gain: f64,
+    /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Differentiator cut-off [Hz] (default: a tenth of the sample rate).
+    #[arg(long)]
+    pub cutoff: Option<f64>,
+}
+
+impl DataArgs {
+    fn columns(&self) -> Columns {
+        Columns {
+            input: self.input.clone(),
+            output: self.output.clone(),
+            load_output: self.load_output.clone(),
+            time: self.time.clone(),
+            input_gain: self.input_gain,
+        }
+    }
+    fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
+        let rec = data::load(file, &self.columns())?;
+        Ok(Prepared::new(&rec, self.cutoff))
+    }
+    /// The model, with its free parameters fitted to `p`.
+    fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
+        let mut m = match &self.model {
+            Some(f) => Model::load(f)?,
+            None => Model::baseline(),
+        };
+        if m.params().iter().any(|q| q.free) {
+            refine::refit_all(&mut m, p).context("fitting the free parameters")?;
+        }
+        Ok(m)
+    }
+}
+
+/// `compare` options.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    /// Data and model.
+    pub data: DataArgs,
+    /// Residual to report.
+    #[arg(long, value_enum, default_value = "equation")]
+    pub residual: ResidualArg,
+    /// Period for folding the residual over position (default: travel / 10).
+    #[arg(long)]
+    pub period: Option<f64>,
+    /// Directory for plots and report.html.
+    #[arg(long, default_value = "workbench-report")]
+    pub out: PathBuf,
+    /// Also write PNGs.
+    #[arg(long)]
+    pub png: bool,
+    /// Refit the free parameters of `--model` on this recording first (by default a given
+    /// model is compared as it is — e.g. a fitted model on validation data; the default
+    /// baseline is always fitted).
+    #[arg(long)]
+    pub refit: bool,
+    /// Print the metrics as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `diagnose` options.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    #[command(flatten)]
+    /// Data and model.
+    pub data: DataArgs,
+    /// Print exactly one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Repeat rank → add → refit until nothing significant is left.
+    #[arg(long)]
+    pub auto: bool,
+    /// Validation recording (same columns) scored at every `--auto` step.
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
+    /// Family-wise error rate.
+    #[arg(long, default_value_t = 0.05)]
+    pub alpha: f64,
+    /// Smallest fraction of residual variance an effect must explain to be added.
+    #[arg(long, default_value_t = 0.01)]
+    pub min_err: f64,
+    /// Smallest RMS an effect must explain, in units of the noise floor.
+    #[arg(long, default_value_t = 0.25)]
+    pub min_rho: f64,
+    /// Most effects `--auto` adds.
+    #[arg(long, default_value_t = 6)]
+    pub max_steps: usize,
+    /// Write the `--auto` model here.
+    #[arg(long)]
+    pub save_model: Option<PathBuf>,
+    /// Directory for the `--auto` plot and report.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `fit` options.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    #[command(flatten)]
+    /// Data and model.
+    pub data: DataArgs,
+    /// Effect to add (offset, viscous, coulomb, asymmetry, stribeck, backlash, compliance,
+    /// ripple, cogging, gravity, deadband, delay, quantization). Without it: refit only.
+    #[arg(long)]
+    pub add: Option<String>,
+    /// Validation recording (same columns).
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
+    /// Where to write the fitted model TOML.
+    #[arg(long, default_value = "fitted-model.toml")]
+    pub save_model: PathBuf,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `compare`.
+pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
+    let p = a.data.prepared(&a.data.file)?;
+    let model = match (&a.data.model, a.refit) {
+        (Some(f), false) => Model::load(f)?,
+        _ => a.data.model(&p)?,
+    };
+    let mode = match a.residual {
+        ResidualArg::Equation => Mode::Equation,
+        ResidualArg::Output => Mode::Output,
+    };
+    let res = match mode {
+        Mode::Equation => residual::equation_error(&model, &p),
+        Mode::Output => residual::output_error(&model, &p),
+    };
+    let m = metrics::compute(&res, a.period);
+    let rec_units = if mode == Mode::Equation {
+        let u = data::unit_of(&a.data.input).0;
+        if a.data.input_gain == 1.0 {
+            u.to_string()
+        } else {
+            format!("{u}×{}", a.data.input_gain)
+        }
+    } else {
+        data::unit_of(&a.data.output).0.to_string()
+    };
+    let charts = report::charts(&res, &m, &rec_units);
+    let params = refine::param_rows(&model);
+    let ptext: String = params
+        .iter()
+        .map(|r| {
+            format!(
+                "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
+                r.owner, r.name, r.value, r.sigma
+            )
+        })
+        .collect();
+    let html = report::write(
+        &a.out,
+        &format!("compare: {} vs {}", model.name, a.data.file.display()),
+        &[
+            ("metrics".into(), m.to_text()),
+            ("model parameters".into(), ptext.clone()),
+        ],
+        &charts,
+        a.png,
+    )
+    .map_err(anyhow::Error::msg)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({ "metrics": m, "params": params, "report": html })
+        );
+    } else {
+        println!("model: {}\n{}", model.name, ptext);
+        print!("{}", m.to_text());
+        println!("report: {}", html.display());
+    }
+    Ok(())
+}
+
+fn auto_text(run: &AutoRun) -> String {
+    let mut s = format!(
+        "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>12} {:>10}\n",
+        "step", "added", "fit %", "RMS", "Holm p", "val RMS", "val fit %"
+    );
+    for st in &run.steps {
+        s.push_str(&format!(
+            "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
+            st.step,
+            st.added.as_deref().unwrap_or("(start)"),
+            st.score.fit_percent,
+            st.score.rms,
+            st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
+            st.validation
+                .map(|v| format!("{:.4e}", v.rms))
+                .unwrap_or_default(),
+            st.validation
+                .map(|v| format!("{:.3}", v.fit_percent))
+                .unwrap_or_default(),
+        ));
+    }
+    s
+}
+
+/// Run `diagnose`.
+pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
+    let p = a.data.prepared(&a.data.file)?;
+    let mut model = a.data.model(&p)?;
+    let opts = Options {
+        alpha: a.alpha,
+        min_err: a.min_err,
+        min_rho: a.min_rho,
+        ..Options::default()
+    };
+    if !a.auto {
+        let d = diagnose::diagnose(&model, &p, &opts);
+        if a.json {
+            println!("{}", d.to_json());
+        } else {
+            print!("{}", d.to_text());
+        }
+        return Ok(());
+    }
+    let val = match &a.validate {
+        Some(f) => Some(a.data.prepared(f)?),
+        None => None,
+    };
+    let run = refine::auto(&mut model, &p, val.as_ref(), &opts, a.max_steps)?;
+    if let Some(f) = &a.save_model {
+        model.save(f)?;
+    }
+    let table = auto_text(&run);
+    let mut report_path = None;
+    if let Some(dir) = &a.out {
+        let mut series = vec![Series {
+            name: "estimation RMS".into(),
+            points: run
+                .steps
+                .iter()
+                .map(|s| (s.step as f64, s.score.rms))
+                .collect(),
+            scatter: false,
+        }];
+        if val.is_some() {
+            series.push(Series {
+                name: "validation RMS".into(),
+                points: run
+                    .steps
+                    .iter()
+                    .filter_map(|s| s.validation.map(|v| (s.step as f64, v.rms)))
+                    .collect(),
+                scatter: false,
+            });
+        }
+        let chart = Chart {
+            id: "auto_error".into(),
+            title: "equation-error RMS after each added effect".into(),
+            x_label: "step".into(),
+            y_label: "RMS".into(),
+            series,
+        };
+        let ptext: String = refine::param_rows(&model)
+            .iter()
+            .map(|r| {
+                format!(
+                    "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
+                    r.owner, r.name, r.value, r.sigma
+                )
+            })
+            .collect();
+        let res = residual::equation_error(&model, &p);
+        let m = metrics::compute(&res, None);
+        let mut charts = vec![chart];
+        charts.extend(report::charts(&res, &m, data::unit_of(&a.data.input).0));
+        report_path = Some(
+            report::write(
+                dir,
+                "diagnose --auto",
+                &[
+                    ("steps".into(), table.clone()),
+                    ("final diagnosis".into(), run.last.to_text()),
+                    ("final model".into(), ptext),
+                    ("final metrics".into(), m.to_text()),
+                ],
+                &charts,
+                true,
+            )
+            .map_err(anyhow::Error::msg)?,
+        );
+    }
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "residual_mode": run.last.residual_mode,
+                "steps": run.steps,
+                "final": run.last.to_json(),
+                "model": model,
+            })
+        );
+    } else {
+        print!("{table}");
+        println!("final: {}", run.last.verdict.text);
+        if let Some(r) = report_path {
+            println!("report: {}", r.display());
+        }
+    }
+    Ok(())
+}
+
+fn fit_text(r: &FitReport) -> String {
+    let mut s = String::new();
+    s.push_str(&format!(
+        "added: {}\n",
+        r.added.as_deref().unwrap_or("(nothing, refit only)")
+    ));
+    s.push_str(&format!(
+        "{:<12} {:<14} {:>14}   {:>10}\n",
+        "owner", "parameter", "value", "1σ"
+    ));
+    for p in &r.params {
+        s.push_str(&format!(
+            "{:<12} {:<14} {:>14.6e} ± {:.3e}\n",
+            p.owner, p.name, p.value, p.sigma
+        ));
+    }
+    s.push_str(&format!(
+        "estimation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
+        r.before.fit_percent,
+        r.after.fit_percent,
+        r.before.rms,
+        r.after.rms,
+        r.before.relative_error_percent,
+        r.after.relative_error_percent
+    ));
+    if let (Some(b), Some(a)) = (r.before_validation, r.after_validation) {
+        s.push_str(&format!(
+            "validation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
+            b.fit_percent, a.fit_percent, b.rms, a.rms, b.relative_error_percent, a.relative_error_percent
+        ));
+    }
+    s
+}
+
+/// Run `fit`.
+pub fn fit(a: FitArgs) -> anyhow::Result<()> {
+    let p = a.data.prepared(&a.data.file)?;
+    let mut model = match &a.data.model {
+        Some(f) => Model::load(f)?,
+        None => Model::baseline(),
+    };
+    let kind = match &a.add {
+        Some(n) => {
+            let k = EffectKind::from_name(n).with_context(|| {
+                format!(
+                    "unknown effect `{n}`; known: {}",
+                    EffectKind::ALL
+                        .iter()
+                        .map(|k| k.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?;
+            if model.has(k) {
+                bail!("the model already contains `{n}`");
+            }
+            Some(k)
+        }
+        None => None,
+    };
+    let val = match &a.validate {
+        Some(f) => Some(a.data.prepared(f)?),
+        None => None,
+    };
+    let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
+    model.save(&a.save_model)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({ "report": r, "model_file": a.save_model })
+        );
+    } else {
+        print!("{}", fit_text(&r));
+        println!("model written to {}", a.save_model.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,363 @@
+//! CSV recordings: column selection, units from the column-name suffix, and errors that say
+//! which file, line and column is wrong.
+//!
+//! A recording is any CSV with a header row. Columns are picked by name; a suffix such as
+//! `_s`, `_ms`, `_m`, `_mm`, `_rad`, `_deg`, `_N`, `_Nm`, `_V` gives the unit and, where the
+//! unit is not SI, the factor that converts it (`_deg` → rad, `_mm` → m, `_ms` → s). HIL
+//! recordings use the same convention, so they load directly.
+
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// What went wrong while loading a recording. Every variant names the file, and where it can,
+/// the 1-based line (the header is line 1) and the column.
+#[derive(Debug, Error)]
+pub enum DataError {
+    /// The file could not be opened or read.
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        /// File.
+        file: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// A requested column is not in the header.
+    #[error("{file}:1: no column `{column}` in the header (have: {have})")]
+    MissingColumn {
+        /// File.
+        file: PathBuf,
+        /// Requested column.
+        column: String,
+        /// Columns present.
+        have: String,
+    },
+    /// A cell does not parse as a number.
+    #[error("{file}:{line}: column `{column}`: `{cell}` is not a number")]
+    NotNumeric {
+        /// File.
+        file: PathBuf,
+        /// Line.
+        line: u64,
+        /// Column.
+        column: String,
+        /// Offending text.
+        cell: String,
+    },
+    /// A cell is NaN or infinite.
+    #[error("{file}:{line}: column `{column}`: value is {value} (NaN/inf not allowed)")]
+    NotFinite {
+        /// File.
+        file: PathBuf,
+        /// Line.
+        line: u64,
+        /// Column.
+        column: String,
+        /// Value.
+        value: f64,
+    },
+    /// Time does not strictly increase.
+    #[error("{file}:{line}: column `{column}`: time {value} does not increase (previous {prev})")]
+    NonMonotonicTime {
+        /// File.
+        file: PathBuf,
+        /// Line.
+        line: u64,
+        /// Column.
+        column: String,
+        /// Value.
+        value: f64,
+        /// Previous value.
+        prev: f64,
+    },
+    /// A row is malformed (wrong number of fields, bad quoting).
+    #[error("{file}:{line}: malformed row: {msg}")]
+    Malformed {
+        /// File.
+        file: PathBuf,
+        /// Line.
+        line: u64,
+        /// Message.
+        msg: String,
+    },
+    /// Too few rows to do anything.
+    #[error("{file}: only {rows} data rows; need at least {need}")]
+    TooShort {
+        /// File.
+        file: PathBuf,
+        /// Rows.
+        rows: usize,
+        /// Needed.
+        need: usize,
+    },
+}
+
+/// Unit and SI conversion factor read from a column-name suffix.
+pub fn unit_of(column: &str) -> (&'static str, f64) {
+    let suffix = column.rsplit_once('_').map(|(_, s)| s).unwrap_or("");
+    match suffix {
+        "s" => ("s", 1.0),
+        "ms" => ("s", 1e-3),
+        "us" => ("s", 1e-6),
+        "m" => ("m", 1.0),
+        "mm" => ("m", 1e-3),
+        "rad" => ("rad", 1.0),
+        "deg" => ("rad", std::f64::consts::PI / 180.0),
+        "N" => ("N", 1.0),
+        "Nm" => ("N·m", 1.0),
+        "V" => ("V", 1.0),
+        "A" => ("A", 1.0),
+        "mps" => ("m/s", 1.0),
+        "radps" => ("rad/s", 1.0),
+        _ => ("", 1.0),
+    }
+}
+
+/// Which columns to use and how to scale the input.
+#[derive(Debug, Clone)]
+pub struct Columns {
+    /// Input (applied force/torque or a command proportional to it).
+    pub input: String,
+    /// Measured output position (motor side).
+    pub output: String,
+    /// Optional load-side position.
+    pub load_output: Option<String>,
+    /// Time column.
+    pub time: String,
+    /// Gain applied to the input column (e.g. the drive gain `gtau` in N/V), so the model sees
+    /// a force/torque.
+    pub input_gain: f64,
+}
+
+impl Columns {
+    /// Input/output by name, time `time_s`, unit gain.
+    pub fn new(input: &str, output: &str) -> Self {
+        Columns {
+            input: input.into(),
+            output: output.into(),
+            load_output: None,
+            time: "time_s".into(),
+            input_gain: 1.0,
+        }
+    }
+}
+
+/// A loaded recording, in SI units.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    /// Where it came from.
+    pub path: PathBuf,
+    /// Time [s].
+    pub time: Vec<f64>,
+    /// Input (after `input_gain` and unit conversion).
+    pub input: Vec<f64>,
+    /// Output position.
+    pub output: Vec<f64>,
+    /// Load-side position, if requested.
+    pub load_output: Option<Vec<f64>>,
+    /// Mean sample period [s].
+    pub dt: f64,
+    /// Units (input, output).
+    pub units: (String, String),
+    /// Column names, for reports.
+    pub columns: Columns,
+}
+
+impl Recording {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+}
+
+/// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
+/// time with the file, line and column in the message.
+pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
+    let file = path.to_path_buf();
+    let text = std::fs::read(path).map_err(|source| DataError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_slice());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: 1,
+            msg: e.to_string(),
+        })?
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let find = |name: &str| -> Result<usize, DataError> {
+        header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| DataError::MissingColumn {
+                file: file.clone(),
+                column: name.into(),
+                have: header.join(", "),
+            })
+    };
+    let ti = find(&cols.time)?;
+    let ui = find(&cols.input)?;
+    let yi = find(&cols.output)?;
+    let li = match &cols.load_output {
+        Some(c) => Some(find(c)?),
+        None => None,
+    };
+    let (_, ts) = unit_of(&cols.time);
+    let (uu, us) = unit_of(&cols.input);
+    let (yu, ys) = unit_of(&cols.output);
+    let ls = cols
+        .load_output
+        .as_deref()
+        .map(|c| unit_of(c).1)
+        .unwrap_or(1.0);
+
+    let mut time = Vec::new();
+    let mut input = Vec::new();
+    let mut output = Vec::new();
+    let mut load_out = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map(|p| p.line()).unwrap_or(0);
+            DataError::Malformed {
+                file: file.clone(),
+                line,
+                msg: e.to_string(),
+            }
+        })?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        let cell = |i: usize, name: &str| -> Result<f64, DataError> {
+            let s = rec.get(i).unwrap_or("");
+            let v: f64 = s.parse().map_err(|_| DataError::NotNumeric {
+                file: file.clone(),
+                line,
+                column: name.into(),
+                cell: s.into(),
+            })?;
+            if !v.is_finite() {
+                return Err(DataError::NotFinite {
+                    file: file.clone(),
+                    line,
+                    column: name.into(),
+                    value: v,
+                });
+            }
+            Ok(v)
+        };
+        let t = cell(ti, &cols.time)? * ts;
+        if let Some(&prev) = time.last() {
+            if t <= prev {
+                return Err(DataError::NonMonotonicTime {
+                    file: file.clone(),
+                    line,
+                    column: cols.time.clone(),
+                    value: t,
+                    prev,
+                });
+            }
+        }
+        time.push(t);
+        input.push(cell(ui, &cols.input)? * us * cols.input_gain);
+        output.push(cell(yi, &cols.output)? * ys);
+        if let (Some(i), Some(name)) = (li, &cols.load_output) {
+            load_out.push(cell(i, name)? * ls);
+        }
+    }
+    if time.len() < 50 {
+        return Err(DataError::TooShort {
+            file,
+            rows: time.len(),
+            need: 50,
+        });
+    }
+    let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
+    let in_unit = if cols.input_gain != 1.0 {
+        format!("{uu}×{}", cols.input_gain)
+    } else {
+        uu.to_string()
+    };
+    Ok(Recording {
+        path: file,
+        time,
+        input,
+        output,
+        load_output: li.map(|_| load_out),
+        dt,
+        units: (in_unit, yu.to_string()),
+        columns: cols.clone(),
+    })
+}
+
+/// Load named columns as raw numbers (no unit conversion), with the same error checks.
+/// For extra signals a command needs beside input/output (a reference, a pulse train).
+pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
+    let file = path.to_path_buf();
+    let text = std::fs::read(path).map_err(|source| DataError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_slice());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: 1,
+            msg: e.to_string(),
+        })?
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header
+                .iter()
+                .position(|h| h == n)
+                .ok_or_else(|| DataError::MissingColumn {
+                    file: file.clone(),
+                    column: (*n).into(),
+                    have: header.join(", "),
+                })
+        })
+        .collect::<Result<_, _>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| DataError::Malformed {
+            file: file.clone(),
+            line: e.position().map(|p| p.line()).unwrap_or(0),
+            msg: e.to_string(),
+        })?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        for (k, &i) in idx.iter().enumerate() {
+            let s = rec.get(i).unwrap_or("");
+            let v: f64 = s.parse().map_err(|_| DataError::NotNumeric {
+                file: file.clone(),
+                line,
+                column: names[k].into(),
+                cell: s.into(),
+            })?;
+            if !v.is_finite() {
+                return Err(DataError::NotFinite {
+                    file: file.clone(),
+                    line,
+                    column: names[k].into(),
+                    value: v,
+                });
+            }
+            out[k].push(v);
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,533 @@
+//! Which library effect is the model missing?
+//!
+//! For every effect the model does not contain, its fingerprint columns `Z` (from
+//! `sim_plant::effects::fingerprint` — the one source of truth) are tested against the
+//! equation-error residual of the current model:
+//!
+//! 1. **Shape search.** Effects with shape parameters (Stribeck velocity, ripple period,
+//!    backlash width, …) are scanned over `shape_grid`; for each shape the error-reduction
+//!    ratio ERR = ΔRSS/RSS of adding `Z` to the current regressors `X` is computed in closed
+//!    form from `ZᵀZ`, `ZᵀX`, `Zᵀe` (a partial-regression update, no refit), and the best
+//!    shape is kept.
+//! 2. **Test.** At that shape the augmented model `[X Z]` is fitted and the amplitudes are
+//!    Wald-tested with a batch-means covariance (autocorrelation-robust, referred to
+//!    `F(q, m − q)`, see [`super::stats`]). Because the shape was chosen as the best of `G`
+//!    grid points, the p-value is Bonferroni-corrected by `G` (conservative: the selected
+//!    shape's p-value is never below the grid minimum).
+//! 3. **Family-wise control.** Holm's step-down over all candidates; a candidate is
+//!    significant when its Holm p < α **and** it explains at least `min_err` of the residual
+//!    variance **and** the RMS it explains is at least `min_rho` × the noise floor (practical
+//!    significance: on 10⁵ samples a 0.01 % improvement is "significant" but not worth a
+//!    model term).
+//!
+//! Where physics fixes the sign of an amplitude (`EffectKind::admissible_sign`: friction
+//! consumes force, compliance and backlash reduce the apparent inertia, …) the test is
+//! one-sided: an estimate of the wrong sign counts as no evidence. This is what keeps
+//! errors-in-variables bias out: derivative-based fingerprints (compliance's a⁗) correlate
+//! with the acceleration noise in the residual with a fixed, unphysical sign.
+//! 4. **Rank** by ERR (how much of the residual the effect explains); verdict = the best
+//!    significant candidate. Occam: if a significant candidate with fewer fingerprint columns
+//!    leaves the same trace (contributions correlated ≥ `ambiguity_corr`) and the top one
+//!    explains less than `min_err` more of the residual, the simpler one goes first.
+//! 5. **Ambiguity.** If another significant candidate's best-fit contribution (its partial
+//!    projection of the residual) correlates ≥ `ambiguity_corr` with the winner's and
+//!    explains nearly as much, both are named with an experiment that would separate them.
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+use sim_plant::effects::{fingerprint, shape_grid, EffectKind, Shape};
+
+use super::fit::{self, gram, gram_inverse};
+use super::metrics;
+use super::model::Model;
+use super::residual::{self, Prepared};
+use super::stats;
+
+/// Tuning of the diagnosis.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Family-wise error rate.
+    pub alpha: f64,
+    /// Minimum fraction of residual variance a candidate must explain.
+    pub min_err: f64,
+    /// Minimum RMS a candidate must explain, in units of the noise floor (ρ of the effect):
+    /// once the residual is at the noise floor, a "significant" 1 % is a fit to noise-like
+    /// artefacts of the record, not a physical effect worth a model term.
+    pub min_rho: f64,
+    /// Correlation of contributions above which two candidates are called ambiguous.
+    pub ambiguity_corr: f64,
+    /// ERR ratio (runner-up / winner) above which a correlated runner-up is ambiguous.
+    pub ambiguity_err_ratio: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            alpha: 0.05,
+            min_err: 0.01,
+            min_rho: 0.25,
+            ambiguity_corr: 0.9,
+            ambiguity_err_ratio: 0.8,
+        }
+    }
+}
+
+/// One candidate effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// Effect name.
+    pub effect: String,
+    /// 1 = most likely missing.
+    pub rank: usize,
+    /// Wald F statistic at the best shape.
+    pub statistic: f64,
+    /// Holm-adjusted p-value (after the shape-search correction).
+    pub p_value: f64,
+    /// Raw p-value at the best shape.
+    pub p_raw: f64,
+    /// Fraction of the residual sum of squares the effect removes.
+    pub err: f64,
+    /// Numerator degrees of freedom (fingerprint columns).
+    pub df: usize,
+    /// Shape grid size (multiplicity of the shape search).
+    pub grid: usize,
+    /// Significant after Holm and the practical threshold.
+    pub significant: bool,
+    /// Best shape.
+    #[serde(skip)]
+    pub shape: Shape,
+    /// Effect.
+    #[serde(skip)]
+    pub kind: Option<EffectKind>,
+}
+
+/// Baseline numbers.
+#[derive(Debug, Clone, Serialize)]
+pub struct Baseline {
+    /// Fit %.
+    pub fit_percent: f64,
+    /// RMS residual.
+    pub rms: f64,
+    /// Noise-floor estimate.
+    pub noise_floor_rms: f64,
+    /// Ljung–Box p.
+    pub ljung_box_p: f64,
+    /// Model description.
+    pub model: String,
+}
+
+/// The verdict.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verdict {
+    /// Effect to add, or null.
+    pub add: Option<String>,
+    /// Candidates that are hard to tell apart from it.
+    pub ambiguous_with: Vec<String>,
+    /// Experiment that would separate them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub experiment: Option<String>,
+    /// Plain text.
+    pub text: String,
+}
+
+/// Result of `diagnose`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Residual used.
+    pub residual_mode: String,
+    /// Current-model numbers.
+    pub baseline: Baseline,
+    /// Ranked candidates.
+    pub candidates: Vec<Candidate>,
+    /// Verdict.
+    pub verdict: Verdict,
+    /// Effects that could not be tested on this record, with why.
+    pub untestable: Vec<String>,
+}
+
+struct Scan {
+    kind: EffectKind,
+    shape: Shape,
+    err: f64,
+    grid: usize,
+}
+
+/// Best shape of one effect by ERR against residual `e` of regressors with Gram inverse `g0i`.
+fn scan(
+    kind: EffectKind,
+    p: &Prepared,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    rss: f64,
+) -> Option<Scan> {
+    let t = p.trajectory();
+    let grid = shape_grid(kind, &t);
+    let mut best: Option<Scan> = None;
+    for s in &grid {
+        let z = fingerprint(kind, &t, s);
+        if z.is_empty() {
+            continue;
+        }
+        let dr = delta_rss(&z, x0, g0i, e);
+        if best.as_ref().is_none_or(|b| dr / rss > b.err) {
+            best = Some(Scan {
+                kind,
+                shape: s.clone(),
+                err: dr / rss,
+                grid: grid.len(),
+            });
+        }
+    }
+    best
+}
+
+/// ΔRSS from adding columns `z` to regressors `x0` (residual `e` ⟂ `x0`).
+fn delta_rss(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> f64 {
+    let q = z.len();
+    let p = x0.len();
+    let zx = DMatrix::from_fn(q, p, |i, j| {
+        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
+    });
+    let zz = gram(z);
+    let ze = DVector::from_iterator(
+        q,
+        z.iter()
+            .map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()),
+    );
+    let zt = &zz - &zx * g0i * zx.transpose();
+    // Columns the current model already spans carry no new information.
+    for i in 0..q {
+        if zt[(i, i)] <= 1e-9 * zz[(i, i)].max(1e-300) {
+            return 0.0;
+        }
+    }
+    let zti = gram_inverse(&zt);
+    (ze.transpose() * zti * &ze)[(0, 0)].max(0.0)
+}
+
+/// Partial projection of `e` on `z` after removing `x0`: the candidate's best-fit contribution.
+fn contribution(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> Vec<f64> {
+    let n = e.len();
+    let q = z.len();
+    let p = x0.len();
+    let zx = DMatrix::from_fn(q, p, |i, j| {
+        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
+    });
+    let b = g0i * zx.transpose(); // p×q
+    let zt: Vec<Vec<f64>> = (0..q)
+        .map(|i| {
+            let mut c = z[i].clone();
+            for j in 0..p {
+                let k = b[(j, i)];
+                for (cc, x) in c.iter_mut().zip(&x0[j]) {
+                    *cc -= k * x;
+                }
+            }
+            c
+        })
+        .collect();
+    let gi = gram_inverse(&gram(&zt));
+    let ze = DVector::from_iterator(
+        q,
+        zt.iter()
+            .map(|c| c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>()),
+    );
+    let g = gi * ze;
+    let mut out = vec![0.0; n];
+    for i in 0..q {
+        for (o, c) in out.iter_mut().zip(&zt[i]) {
+            *o += g[i] * c;
+        }
+    }
+    out
+}
+
+fn corr(a: &[f64], b: &[f64]) -> f64 {
+    let ab: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    let aa: f64 = a.iter().map(|x| x * x).sum();
+    let bb: f64 = b.iter().map(|x| x * x).sum();
+    if aa * bb > 0.0 {
+        ab / (aa * bb).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// An experiment that separates two effects with similar fingerprints on this record.
+pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
+    use EffectKind::*;
+    let pair = |x, y| (a == x && b == y) || (a == y && b == x);
+    if pair(Coulomb, Stribeck) || pair(Stribeck, Viscous) {
+        "constant-velocity sweeps at several speeds from ~1 % to 100 % of the maximum in both directions (friction–velocity map)".into()
+    } else if pair(Coulomb, Offset) || pair(Offset, Asymmetry) || pair(Coulomb, Asymmetry) {
+        "slow triangle moves at two or more speeds in both directions: offset shifts both directions equally, Coulomb flips with direction, asymmetry grows with speed".into()
+    } else if pair(Ripple, Gravity) || pair(Ripple, Cogging) {
+        "constant-velocity moves over several periods at two speeds: a position-periodic effect keeps its period in position, not in time".into()
+    } else if pair(Gravity, Offset) {
+        "hold the axis at several positions over a large travel: gravity varies with angle, an offset does not".into()
+    } else if pair(Delay, Compliance) || pair(Compliance, Backlash) || pair(Delay, Backlash) {
+        "torque steps or a chirp with a load-side sensor: compliance shows a resonance and load/motor difference, delay a pure phase lag, backlash a dead zone at reversals".into()
+    } else if pair(Deadband, Coulomb) || pair(Deadband, Quantization) {
+        "open-loop slow input ramps through zero with the axis free: a dead zone shows no motion below a command threshold".into()
+    } else {
+        "a richer excitation: broadband chirp over the full travel, at several speeds and load levels, in both directions".into()
+    }
+}
+
+/// Best shape of one effect and its ERR against residual `e` of regressors `x0`.
+pub fn scan_shape(
+    kind: EffectKind,
+    p: &Prepared,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    rss: f64,
+) -> Option<(Shape, f64)> {
+    scan(kind, p, x0, g0i, e, rss).map(|s| (s.shape, s.err))
+}
+
+/// Occam between indistinguishable candidates (step 4 of the module docs).
+///
+/// Effects of the library differ in their number of fingerprint columns (asymmetry has a
+/// Coulomb-extra and a viscous-extra column, deadband a width and a nonlinearity column), and
+/// more columns always explain at least as much. When the top candidate by ERR and a
+/// significant candidate with *fewer* columns leave the same trace on this record (their
+/// contributions correlate ≥ `ambiguity_corr`), the richer one is kept on top only if it
+/// explains at least `min_err` more of the residual than the simpler one; otherwise the
+/// simpler one is moved to rank 1. Both stay in the list, and the verdict names them as
+/// ambiguous. (Both already passed the noise-floor test, so the comparison is relative.)
+fn prefer_parsimonious(
+    cands: &mut [Candidate],
+    t: &sim_plant::effects::Trajectory,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    opts: &Options,
+) {
+    let Some(top) = cands.first().filter(|c| c.significant).cloned() else {
+        return;
+    };
+    let zt = fingerprint(top.kind.expect("kind"), t, &top.shape);
+    let ct = contribution(&zt, x0, g0i, e);
+    let mut best: Option<usize> = None;
+    for (i, c) in cands.iter().enumerate().skip(1) {
+        if !c.significant || c.df >= top.df || best.is_some_and(|b| cands[b].df <= c.df) {
+            continue;
+        }
+        // Both are already above the noise floor (significant); between two explanations of
+        // the same residual what matters is how much more of it the richer one explains.
+        if top.err - c.err >= opts.min_err {
+            continue;
+        }
+        let zc = fingerprint(c.kind.expect("kind"), t, &c.shape);
+        let cc = contribution(&zc, x0, g0i, e);
+        if corr(&ct, &cc).abs() >= opts.ambiguity_corr {
+            best = Some(i);
+        }
+    }
+    if let Some(i) = best {
+        cands[..=i].rotate_right(1);
+    }
+}
+
+/// Diagnose the (already fitted) model on prepared data.
+pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
+    let d = residual::design(model, p);
+    let x0 = &d.cols;
+    let g0i = gram_inverse(&gram(x0));
+    let base = fit::least_squares(x0, &d.y).expect("enough samples for the current model");
+    let e = &base.residual;
+    let rss = base.rss.max(1e-300);
+    let pred: Vec<f64> = p.input.iter().zip(e).map(|(u, r)| u - r).collect();
+    let baseline = Baseline {
+        fit_percent: metrics::fit_percent(&p.input, &pred),
+        rms: (rss / e.len() as f64).sqrt(),
+        noise_floor_rms: p.noise_floor,
+        ljung_box_p: stats::ljung_box(e, 20).1,
+        model: model.name.clone(),
+    };
+
+    let mut untestable = Vec::new();
+    let mut scans = Vec::new();
+    for kind in EffectKind::ALL {
+        if model.has(kind) {
+            continue;
+        }
+        match scan(kind, p, x0, &g0i, e, rss) {
+            Some(s) if s.err > 0.0 => scans.push(s),
+            Some(_) => untestable.push(format!(
+                "{}: fingerprint already spanned by the model on this record",
+                kind.name()
+            )),
+            None => untestable.push(format!(
+                "{}: no shape to test on this record (e.g. unknown period)",
+                kind.name()
+            )),
+        }
+    }
+
+    // Wald test at each best shape.
+    let t = p.trajectory();
+    let mut cands: Vec<Candidate> = scans
+        .iter()
+        .map(|s| {
+            let z = fingerprint(s.kind, &t, &s.shape);
+            let q = z.len();
+            let mut cols = x0.clone();
+            cols.extend(z);
+            let f = fit::least_squares(&cols, &d.y).expect("fit");
+            let idx: Vec<usize> = (x0.len()..x0.len() + q).collect();
+            let (stat, mut p_raw) = f.wald(&idx);
+            let mut err = s.err;
+            // One-sided where physics fixes the sign of the (first) amplitude: half the
+            // two-sided p when the estimate has the admissible sign, otherwise no evidence.
+            if let Some(sign) = s.kind.admissible_sign() {
+                if f.theta[x0.len()] * sign > 0.0 {
+                    if q == 1 {
+                        p_raw *= 0.5;
+                    }
+                } else {
+                    p_raw = 1.0;
+                    err = 0.0;
+                }
+            }
+            Candidate {
+                effect: s.kind.name().into(),
+                rank: 0,
+                statistic: stat,
+                p_value: (p_raw * s.grid as f64).min(1.0),
+                p_raw,
+                err,
+                df: q,
+                grid: s.grid,
+                significant: false,
+                shape: s.shape.clone(),
+                kind: Some(s.kind),
+            }
+        })
+        .collect();
+    let adj = stats::holm(&cands.iter().map(|c| c.p_value).collect::<Vec<_>>());
+    let n = e.len() as f64;
+    for (c, a) in cands.iter_mut().zip(adj) {
+        c.p_value = a;
+        let explained_rms = (c.err * rss / n).sqrt();
+        c.significant = a < opts.alpha
+            && c.err >= opts.min_err
+            && explained_rms >= opts.min_rho * p.noise_floor;
+    }
+    cands.sort_by(|a, b| b.err.total_cmp(&a.err));
+    prefer_parsimonious(&mut cands, &t, x0, &g0i, e, opts);
+    for (i, c) in cands.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
+
+    let winner = cands.iter().find(|c| c.significant).cloned();
+    let verdict = match winner {
+        None => Verdict {
+            add: None,
+            ambiguous_with: Vec::new(),
+            experiment: None,
+            text: "no significant missing effect".into(),
+        },
+        Some(w) => {
+            let wk = w.kind.expect("kind");
+            let zw = fingerprint(wk, &t, &w.shape);
+            let cw = contribution(&zw, x0, &g0i, e);
+            let mut amb = Vec::new();
+            for c in cands
+                .iter()
+                .filter(|c| c.significant && c.effect != w.effect)
+                .take(6)
+            {
+                if c.err < opts.ambiguity_err_ratio * w.err {
+                    continue;
+                }
+                let zc = fingerprint(c.kind.expect("kind"), &t, &c.shape);
+                let cc = contribution(&zc, x0, &g0i, e);
+                if corr(&cw, &cc).abs() >= opts.ambiguity_corr {
+                    amb.push(c.kind.expect("kind"));
+                }
+            }
+            let experiment = amb.first().map(|&b| separating_experiment(wk, b));
+            let text = if amb.is_empty() {
+                format!(
+                    "add {} (explains {:.1} % of the residual, Holm p = {:.2e})",
+                    w.effect,
+                    100.0 * w.err,
+                    w.p_value
+                )
+            } else {
+                format!(
+                    "add {} — but hard to tell apart from {} on this record; to separate them: {}",
+                    w.effect,
+                    amb.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
+                    experiment.clone().unwrap_or_default()
+                )
+            };
+            Verdict {
+                add: Some(w.effect.clone()),
+                ambiguous_with: amb.iter().map(|k| k.name().to_string()).collect(),
+                experiment,
+                text,
+            }
+        }
+    };
+    Diagnosis {
+        residual_mode: residual::Mode::Equation.name().into(),
+        baseline,
+        candidates: cands,
+        verdict,
+        untestable,
+    }
+}
+
+impl Diagnosis {
+    /// The JSON object of the interface (plus extra fields).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "residual_mode": self.residual_mode,
+            "baseline": self.baseline,
+            "candidates": self.candidates,
+            "verdict": self.verdict,
+            "untestable": self.untestable,
+        })
+    }
+
+    /// Human-readable table.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let b = &self.baseline;
+        let _ = writeln!(s, "model: {}", b.model);
+        let _ = writeln!(
+            s,
+            "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e}   Ljung–Box p {:.2e}",
+            self.residual_mode, b.fit_percent, b.rms, b.noise_floor_rms, b.ljung_box_p
+        );
+        let _ = writeln!(
+            s,
+            "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>4} {:>5}  sig",
+            "rank", "effect", "ERR %", "F", "Holm p", "df", "grid"
+        );
+        for c in &self.candidates {
+            let _ = writeln!(
+                s,
+                "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10.2e} {:>4} {:>5}  {}",
+                c.rank,
+                c.effect,
+                100.0 * c.err,
+                c.statistic,
+                c.p_value,
+                c.df,
+                c.grid,
+                if c.significant { "yes" } else { "no" }
+            );
+        }
+        for u in &self.untestable {
+            let _ = writeln!(s, "not tested: {u}");
+        }
+        let _ = writeln!(s, "verdict: {}", self.verdict.text);
+        s
+    }
+}

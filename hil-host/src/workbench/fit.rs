@@ -1,0 +1,295 @@
+//! Solvers: linear least squares and Levenberg–Marquardt, both with a batch-means (block
+//! long-run variance) sandwich covariance. See [`super::stats`] for why the covariance is not
+//! the textbook `σ²(XᵀX)⁻¹`: equation-error residuals are autocorrelated.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::stats;
+
+/// Number of contiguous blocks for the batch-means covariance (fewer on short records).
+pub const BLOCKS: usize = 32;
+
+/// A linear least-squares fit.
+#[derive(Debug, Clone)]
+pub struct LsFit {
+    /// Estimates, one per column.
+    pub theta: Vec<f64>,
+    /// Batch-means sandwich covariance of the estimates.
+    pub cov: DMatrix<f64>,
+    /// Residual `y − Xθ`.
+    pub residual: Vec<f64>,
+    /// Residual sum of squares.
+    pub rss: f64,
+    /// Blocks used for the covariance.
+    pub blocks: usize,
+}
+
+impl LsFit {
+    /// 1σ of parameter `j`.
+    pub fn sigma(&self, j: usize) -> f64 {
+        self.cov[(j, j)].max(0.0).sqrt()
+    }
+
+    /// Wald test that the parameters `idx` are all zero, referred to `F(q, m−q)` with the
+    /// Hotelling correction for `m` batch means. Returns (F statistic, p-value).
+    pub fn wald(&self, idx: &[usize]) -> (f64, f64) {
+        let q = idx.len();
+        let m = self.blocks;
+        if q == 0 || m <= q {
+            return (0.0, 1.0);
+        }
+        let v = DMatrix::from_fn(q, q, |a, b| self.cov[(idx[a], idx[b])]);
+        if v.iter().any(|x| !x.is_finite()) {
+            return (0.0, 1.0);
+        }
+        let g = DVector::from_iterator(q, idx.iter().map(|&i| self.theta[i]));
+        let w = match v.clone().try_inverse() {
+            Some(vi) => (g.transpose() * vi * &g)[(0, 0)],
+            None => match v.pseudo_inverse(1e-12) {
+                Ok(vi) => (g.transpose() * vi * &g)[(0, 0)],
+                Err(_) => 0.0,
+            },
+        };
+        let f = w.max(0.0) * (m - q) as f64 / ((m - 1) as f64 * q as f64);
+        (f, stats::f_sf(f, q as f64, (m - q) as f64))
+    }
+}
+
+/// Error from a solver.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// Not enough data for the parameters.
+    #[error("{0} samples are too few for {1} parameters")]
+    TooFew(usize, usize),
+    /// A regressor or the target holds NaN/inf.
+    #[error("non-finite value in the regression data")]
+    NonFinite,
+}
+
+/// Gram matrix `XᵀX` of column-major data.
+pub fn gram(cols: &[Vec<f64>]) -> DMatrix<f64> {
+    let p = cols.len();
+    let mut g = DMatrix::zeros(p, p);
+    for i in 0..p {
+        for j in 0..=i {
+            let s: f64 = cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum();
+            g[(i, j)] = s;
+            g[(j, i)] = s;
+        }
+    }
+    g
+}
+
+/// Inverse of a Gram matrix through column scaling and an SVD pseudo-inverse, so nearly
+/// collinear or badly scaled columns (jerk next to a constant) do not blow up.
+pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
+    let p = g.nrows();
+    // nalgebra's SVD does not terminate on NaN/inf input.
+    if g.iter().any(|v| !v.is_finite()) {
+        return DMatrix::from_element(p, p, f64::NAN);
+    }
+    let d: Vec<f64> = (0..p)
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
+    let inv = gs
+        .pseudo_inverse(1e-12)
+        .unwrap_or_else(|_| DMatrix::zeros(p, p));
+    DMatrix::from_fn(p, p, |i, j| inv[(i, j)] * d[i] * d[j])
+}
+
+/// Batch-means sandwich covariance for regressors `cols` and residual `e`.
+pub fn batch_covariance(
+    cols: &[Vec<f64>],
+    e: &[f64],
+    ginv: &DMatrix<f64>,
+) -> (DMatrix<f64>, usize) {
+    let n = e.len();
+    let p = cols.len();
+    let m = BLOCKS.min(n / 20).max(2);
+    let mut omega = DMatrix::<f64>::zeros(p, p);
+    let mut s = vec![0.0; p];
+    for b in 0..m {
+        let (lo, hi) = (b * n / m, (b + 1) * n / m);
+        for (j, c) in cols.iter().enumerate() {
+            s[j] = c[lo..hi].iter().zip(&e[lo..hi]).map(|(x, r)| x * r).sum();
+        }
+        for i in 0..p {
+            for j in 0..p {
+                omega[(i, j)] += s[i] * s[j];
+            }
+        }
+    }
+    omega *= m as f64 / (m - 1) as f64;
+    (ginv * omega * ginv, m)
+}
+
+/// Ordinary least squares `y ≈ Σ θ_j·cols[j]` with batch-means covariance.
+pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
+    let n = y.len();
+    let p = cols.len();
+    if n < p + 2 {
+        return Err(FitError::TooFew(n, p));
+    }
+    if y.iter()
+        .chain(cols.iter().flatten())
+        .any(|v| !v.is_finite())
+    {
+        return Err(FitError::NonFinite);
+    }
+    let g = gram(cols);
+    let ginv = gram_inverse(&g);
+    let xty = DVector::from_iterator(
+        p,
+        cols.iter()
+            .map(|c| c.iter().zip(y).map(|(a, b)| a * b).sum()),
+    );
+    let theta = &ginv * xty;
+    let mut residual = y.to_vec();
+    for (j, c) in cols.iter().enumerate() {
+        let t = theta[j];
+        for (r, x) in residual.iter_mut().zip(c) {
+            *r -= t * x;
+        }
+    }
+    let rss = residual.iter().map(|r| r * r).sum();
+    let (cov, blocks) = batch_covariance(cols, &residual, &ginv);
+    Ok(LsFit {
+        theta: theta.iter().copied().collect(),
+        cov,
+        residual,
+        rss,
+        blocks,
+    })
+}
+
+/// Result of a Levenberg–Marquardt fit.
+#[derive(Debug, Clone)]
+pub struct LmFit {
+    /// Estimates.
+    pub x: Vec<f64>,
+    /// Batch-means sandwich covariance from the final Jacobian.
+    pub cov: DMatrix<f64>,
+    /// Final residual.
+    pub residual: Vec<f64>,
+    /// Iterations used.
+    pub iterations: usize,
+}
+
+/// Levenberg–Marquardt on `f(x) = residual` with a forward-difference Jacobian (relative
+/// step). Marquardt's diagonal scaling makes it indifferent to parameter units.
+pub fn levenberg_marquardt<F: Fn(&[f64]) -> Vec<f64>>(f: F, x0: &[f64], max_iter: usize) -> LmFit {
+    let p = x0.len();
+    let mut x = x0.to_vec();
+    let mut r = f(&x);
+    let mut cost: f64 = r.iter().map(|v| v * v).sum();
+    let mut lambda = 1e-3;
+    let jac = |x: &[f64], r: &[f64]| -> Vec<Vec<f64>> {
+        (0..p)
+            .map(|j| {
+                let h = 1e-6 * x[j].abs().max(1e-8);
+                let mut xp = x.to_vec();
+                xp[j] += h;
+                let rp = f(&xp);
+                rp.iter().zip(r).map(|(a, b)| (a - b) / h).collect()
+            })
+            .collect()
+    };
+    let mut it = 0;
+    let mut j = jac(&x, &r);
+    while it < max_iter {
+        it += 1;
+        let g = gram(&j);
+        let grad = DVector::from_iterator(
+            p,
+            j.iter().map(|c| c.iter().zip(&r).map(|(a, b)| a * b).sum()),
+        );
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut a = g.clone();
+            for i in 0..p {
+                a[(i, i)] += lambda * g[(i, i)].max(1e-300);
+            }
+            let step = match a.clone().lu().solve(&(-&grad)) {
+                Some(s) => s,
+                None => break,
+            };
+            let xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            let rn = f(&xn);
+            let cn: f64 = rn.iter().map(|v| v * v).sum();
+            if cn.is_finite() && cn < cost {
+                let rel = (cost - cn) / cost.max(1e-300);
+                x = xn;
+                r = rn;
+                cost = cn;
+                lambda = (lambda * 0.3).max(1e-12);
+                improved = true;
+                if rel < 1e-10 {
+                    it = max_iter;
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+        j = jac(&x, &r);
+    }
+    let g = gram(&j);
+    let ginv = gram_inverse(&g);
+    let (cov, _) = batch_covariance(&j, &r, &ginv);
+    LmFit {
+        x,
+        cov,
+        residual: r,
+        iterations: it,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ls_recovers_coefficients() {
+        let n = 2000;
+        let x1: Vec<f64> = (0..n).map(|i| (i as f64 * 0.01).sin()).collect();
+        let x2: Vec<f64> = vec![1.0; n];
+        let y: Vec<f64> = (0..n)
+            .map(|i| 3.0 * x1[i] - 2.0 + 0.01 * ((i * 7919 % 101) as f64 / 50.0 - 1.0))
+            .collect();
+        let f = least_squares(&[x1, x2], &y).unwrap();
+        assert!((f.theta[0] - 3.0).abs() < 1e-2 && (f.theta[1] + 2.0).abs() < 1e-2);
+        assert!(f.sigma(0) > 0.0 && f.sigma(0) < 0.01);
+        let (_, p) = f.wald(&[0]);
+        assert!(p < 1e-6);
+    }
+
+    #[test]
+    fn lm_fits_an_exponential() {
+        let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = t.iter().map(|&t| 2.0 * (-0.7 * t).exp()).collect();
+        let fit = levenberg_marquardt(
+            |p| {
+                t.iter()
+                    .zip(&y)
+                    .map(|(&t, &y)| y - p[0] * (-p[1] * t).exp())
+                    .collect()
+            },
+            &[1.0, 0.2],
+            100,
+        );
+        assert!(
+            (fit.x[0] - 2.0).abs() < 1e-6 && (fit.x[1] - 0.7).abs() < 1e-6,
+            "{:?}",
+            fit.x
+        );
+    }
+}

@@ -1,0 +1,301 @@
+//! `fit --add` and `diagnose --auto`: add an effect, refit everything free, and show the error
+//! before and after — on the estimation record and, if given, on a validation record.
+//!
+//! Amplitudes enter linearly, so they are fitted by linear least squares. A smooth shape
+//! parameter (Stribeck velocity, ripple period, dead-zone width) is first placed at the best
+//! point of the library's `shape_grid`, then refined together with all free amplitudes by
+//! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
+//! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
+//! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
+
+use serde::Serialize;
+use sim_plant::effects::{EffectKind, Shape};
+
+use super::diagnose::{self, Diagnosis, Options};
+use super::fit::{self, gram, gram_inverse};
+use super::metrics;
+use super::model::Model;
+use super::residual::{self, Prepared};
+
+/// Fit % and RMS of a model on one record.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Score {
+    /// Fit %.
+    pub fit_percent: f64,
+    /// RMS residual.
+    pub rms: f64,
+    /// ‖e‖/‖u‖ %.
+    pub relative_error_percent: f64,
+}
+
+/// Equation-error score of a model on prepared data (no refit).
+pub fn score(model: &Model, p: &Prepared) -> Score {
+    let r = residual::equation_error(model, p);
+    let n = r.residual.len() as f64;
+    let ss: f64 = r.residual.iter().map(|v| v * v).sum();
+    let uu: f64 = r.measured.iter().map(|v| v * v).sum();
+    Score {
+        fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
+        rms: (ss / n).sqrt(),
+        relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
+    }
+}
+
+/// One fitted parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamRow {
+    /// Owner (`inertia` or an effect name).
+    pub owner: String,
+    /// Name.
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// 1σ.
+    pub sigma: f64,
+}
+
+/// What `fit --add` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct FitReport {
+    /// Effect added (None = refit only).
+    pub added: Option<String>,
+    /// Before, estimation data.
+    pub before: Score,
+    /// After, estimation data.
+    pub after: Score,
+    /// Before, validation data.
+    pub before_validation: Option<Score>,
+    /// After, validation data.
+    pub after_validation: Option<Score>,
+    /// Parameters ± 1σ.
+    pub params: Vec<ParamRow>,
+}
+
+/// Shape value that LM may refine, if the effect's fingerprint is smooth in it.
+fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
+    match kind {
+        EffectKind::Stribeck => Some(s.stribeck_velocity),
+        EffectKind::Ripple => Some(s.ripple_period),
+        EffectKind::Deadband => Some(s.deadband_width),
+        EffectKind::Delay => Some(s.delay),
+        _ => None,
+    }
+}
+
+fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
+    match kind {
+        EffectKind::Stribeck => s.stribeck_velocity = v,
+        EffectKind::Ripple => s.ripple_period = v,
+        EffectKind::Deadband => s.deadband_width = v,
+        EffectKind::Delay => s.delay = v,
+        _ => {}
+    }
+}
+
+/// Best grid shape of `kind` against the current model's residual (largest ERR).
+pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape> {
+    let d = residual::design(model, p);
+    let g0i = gram_inverse(&gram(&d.cols));
+    let base = fit::least_squares(&d.cols, &d.y).ok()?;
+    diagnose::scan_shape(kind, p, &d.cols, &g0i, &base.residual, base.rss.max(1e-300))
+        .map(|(s, _)| s)
+}
+
+/// Refit all free parameters of a model (LS; LM over smooth shapes of free effects).
+pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
+    residual::refit(model, p)?;
+    let lm_idx: Vec<usize> = model
+        .effects
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| {
+            smooth_shape(e.kind, &e.shape).is_some() && e.params.iter().any(|q| q.free)
+        })
+        .map(|(i, _)| i)
+        .collect();
+    if lm_idx.is_empty() {
+        return Ok(());
+    }
+    // x = [free amplitudes..., ln(shape) per LM effect]
+    let free: Vec<usize> = model
+        .params()
+        .iter()
+        .enumerate()
+        .filter(|(_, q)| q.free)
+        .map(|(i, _)| i)
+        .collect();
+    let mut x0: Vec<f64> = free.iter().map(|&i| model.params()[i].value).collect();
+    for &e in &lm_idx {
+        x0.push(
+            smooth_shape(model.effects[e].kind, &model.effects[e].shape)
+                .unwrap_or(1.0)
+                .ln(),
+        );
+    }
+    let nf = free.len();
+    let template = model.clone();
+    let apply = |x: &[f64]| -> Model {
+        let mut m = template.clone();
+        {
+            let mut ps = m.params_mut();
+            for (k, &i) in free.iter().enumerate() {
+                ps[i].value = x[k];
+            }
+        }
+        for (k, &e) in lm_idx.iter().enumerate() {
+            let kind = m.effects[e].kind;
+            set_shape(kind, &mut m.effects[e].shape, x[nf + k].exp());
+        }
+        m
+    };
+    let lm = fit::levenberg_marquardt(
+        |x| {
+            let m = apply(x);
+            residual::equation_error(&m, p).residual
+        },
+        &x0,
+        30,
+    );
+    let before: f64 = residual::equation_error(model, p)
+        .residual
+        .iter()
+        .map(|v| v * v)
+        .sum();
+    let after: f64 = lm.residual.iter().map(|v| v * v).sum();
+    if after < before {
+        let mut m = apply(&lm.x);
+        {
+            let mut ps = m.params_mut();
+            for (k, &i) in free.iter().enumerate() {
+                ps[i].sigma = Some(lm.cov[(k, k)].max(0.0).sqrt());
+            }
+        }
+        *model = m;
+    }
+    Ok(())
+}
+
+/// Parameter table of a model.
+pub fn param_rows(model: &Model) -> Vec<ParamRow> {
+    let mut rows = vec![ParamRow {
+        owner: "inertia".into(),
+        name: model.inertia.name.clone(),
+        value: model.inertia.value,
+        sigma: model.inertia.sigma.unwrap_or(0.0),
+    }];
+    for e in &model.effects {
+        for q in &e.params {
+            rows.push(ParamRow {
+                owner: e.kind.name().into(),
+                name: q.name.clone(),
+                value: q.value,
+                sigma: q.sigma.unwrap_or(0.0),
+            });
+        }
+        if let Some(v) = smooth_shape(e.kind, &e.shape) {
+            rows.push(ParamRow {
+                owner: e.kind.name().into(),
+                name: "shape".into(),
+                value: v,
+                sigma: 0.0,
+            });
+        }
+    }
+    rows
+}
+
+/// Add `kind` (if given) at its best grid shape, refit everything free, and score before and
+/// after on estimation and validation data.
+pub fn fit_add(
+    model: &mut Model,
+    p: &Prepared,
+    kind: Option<EffectKind>,
+    validation: Option<&Prepared>,
+) -> Result<FitReport, fit::FitError> {
+    residual::refit(model, p)?;
+    let before = score(model, p);
+    let before_validation = validation.map(|v| score(model, v));
+    if let Some(k) = kind {
+        let shape = best_shape(model, p, k).unwrap_or_default();
+        model.add(k, shape);
+    }
+    refit_all(model, p)?;
+    Ok(FitReport {
+        added: kind.map(|k| k.name().to_string()),
+        before,
+        after: score(model, p),
+        before_validation,
+        after_validation: validation.map(|v| score(model, v)),
+        params: param_rows(model),
+    })
+}
+
+/// One step of `diagnose --auto`.
+#[derive(Debug, Clone, Serialize)]
+pub struct AutoStep {
+    /// Step number (0 = starting model).
+    pub step: usize,
+    /// Effect added at this step.
+    pub added: Option<String>,
+    /// Score after the step (estimation data).
+    pub score: Score,
+    /// Score on validation data.
+    pub validation: Option<Score>,
+    /// Holm p of the added effect.
+    pub p_value: Option<f64>,
+    /// Diagnosis text at this step.
+    pub verdict: String,
+}
+
+/// Result of `diagnose --auto`.
+#[derive(Debug, Clone, Serialize)]
+pub struct AutoRun {
+    /// Steps.
+    pub steps: Vec<AutoStep>,
+    /// Final diagnosis.
+    pub last: Diagnosis,
+}
+
+/// Rank → add → refit until nothing significant is left (at most `max_steps` additions).
+pub fn auto(
+    model: &mut Model,
+    p: &Prepared,
+    validation: Option<&Prepared>,
+    opts: &Options,
+    max_steps: usize,
+) -> Result<AutoRun, fit::FitError> {
+    refit_all(model, p)?;
+    let mut steps = vec![AutoStep {
+        step: 0,
+        added: None,
+        score: score(model, p),
+        validation: validation.map(|v| score(model, v)),
+        p_value: None,
+        verdict: "start".into(),
+    }];
+    loop {
+        let d = diagnose::diagnose(model, p, opts);
+        let Some(name) = d.verdict.add.clone() else {
+            return Ok(AutoRun { steps, last: d });
+        };
+        if steps.len() > max_steps {
+            return Ok(AutoRun { steps, last: d });
+        }
+        let c = d
+            .candidates
+            .iter()
+            .find(|c| c.effect == name)
+            .expect("winner is a candidate");
+        let kind = c.kind.expect("kind");
+        model.add(kind, c.shape.clone());
+        refit_all(model, p)?;
+        steps.push(AutoStep {
+            step: steps.len(),
+            added: Some(name),
+            score: score(model, p),
+            validation: validation.map(|v| score(model, v)),
+            p_value: Some(c.p_value),
+            verdict: d.verdict.text.clone(),
+        });
+    }
+}

@@ -1,0 +1,329 @@
+//! The two residuals.
+//!
+//! * **Equation error** (inverse dynamics): predict the input from the measured motion —
+//!   `û = M·a + Σ θ·fingerprint(x, v, a, u)` with `v`, `a` from the smoothing differentiator
+//!   ([`super::diff`]) — and compare with the measured input. Linear in every amplitude, so it
+//!   is what `diagnose` tests and `fit` fits; it works on closed-loop data (EMPS) because it never
+//!   integrates the plant.
+//! * **Output error** (simulation): integrate the model from the measured input (RK4, input held
+//!   over each sample, 4 sub-steps) starting from the measured initial state, and compare
+//!   positions. This is the honest "does the model predict" check for open-loop data; a rigid
+//!   axis is a pure integrator, so on long open-loop records small force errors accumulate into
+//!   drift — the report says which residual it shows.
+
+use sim_plant::effects::{fingerprint, Trajectory};
+
+use super::data::Recording;
+use super::diff;
+use super::fit::{self, LsFit};
+use super::model::Model;
+
+/// Which residual.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Inverse dynamics / equation error (predicted input vs measured input).
+    Equation,
+    /// Simulation / output error (simulated position vs measured position).
+    Output,
+}
+
+impl Mode {
+    /// Name used in reports and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Equation => "equation_error",
+            Mode::Output => "output_error",
+        }
+    }
+}
+
+/// A recording after differentiation, with the filter's edge samples dropped.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// Time.
+    pub time: Vec<f64>,
+    /// Measured input (SI force/torque), low-passed by the differentiator's zero-phase filter
+    /// ("parallel filtering", as in IDIM): both sides of the inverse-dynamics equation then
+    /// see the same bandwidth. Without it the input's content above the cut-off — sensor noise,
+    /// but also real torque the feedback puts there (PD on a quantised encoder) — has no
+    /// counterpart in the smoothed acceleration and ends up as structured residual that
+    /// broadband fingerprints (compliance, delay) happily "explain".
+    pub input: Vec<f64>,
+    /// Measured input as recorded (SI).
+    pub raw_input: Vec<f64>,
+    /// White-noise RMS of the raw input (second-difference estimate) times the filter's noise
+    /// gain: the RMS a perfect model would leave in the equation-error residual.
+    pub noise_floor: f64,
+    /// Measured (raw) position.
+    pub raw_position: Vec<f64>,
+    /// Smoothed position.
+    pub position: Vec<f64>,
+    /// Velocity.
+    pub velocity: Vec<f64>,
+    /// Acceleration.
+    pub acceleration: Vec<f64>,
+    /// Sample period.
+    pub dt: f64,
+    /// Differentiator cut-off used [Hz].
+    pub cutoff_hz: f64,
+    /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
+    pub input_instrument: Vec<f64>,
+}
+
+impl Prepared {
+    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate).
+    pub fn new(rec: &Recording, cutoff_hz: Option<f64>) -> Self {
+        let fc = cutoff_hz.unwrap_or_else(|| diff::default_cutoff(rec.dt));
+        let d = diff::differentiate(&rec.output, rec.dt, fc);
+        let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
+        let r = e..rec.len() - e;
+        let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
+        let floor = super::metrics::noise_floor(&rec.input) * diff::noise_gain(fc, 1.0 / rec.dt);
+        let mut p = Prepared {
+            time: rec.time[r.clone()].to_vec(),
+            input: uf[r.clone()].to_vec(),
+            raw_input: rec.input[r.clone()].to_vec(),
+            noise_floor: floor,
+            raw_position: rec.output[r.clone()].to_vec(),
+            position: d.position[r.clone()].to_vec(),
+            velocity: d.velocity[r.clone()].to_vec(),
+            acceleration: d.acceleration[r].to_vec(),
+            dt: rec.dt,
+            cutoff_hz: fc,
+            input_instrument: Vec::new(),
+        };
+        p.input_instrument = instrument(&p);
+        p
+    }
+
+    /// Borrow as a library trajectory.
+    ///
+    /// Its `input` is the **instrument**, not the measured input: fingerprints built from the
+    /// input (dead zone, delay, quantisation) would otherwise contain the input's measurement
+    /// noise, which is also in the target of the regression, and "explain" the residual's own
+    /// noise (errors-in-variables). The instrument is the least-squares reconstruction of the
+    /// input from motion alone (`a`, `v`, `sign v`, 1), so it is independent of input noise
+    /// while following the input's shape.
+    pub fn trajectory(&self) -> Trajectory<'_> {
+        Trajectory {
+            dt: self.dt,
+            input: &self.input_instrument,
+            position: &self.position,
+            velocity: &self.velocity,
+            acceleration: &self.acceleration,
+        }
+    }
+
+    /// Samples.
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+}
+
+/// Motion-based reconstruction of the input: LS fit of the input on (a, v, sign v, 1).
+fn instrument(p: &Prepared) -> Vec<f64> {
+    let n = p.len();
+    let cols = vec![
+        p.acceleration.clone(),
+        p.velocity.clone(),
+        p.velocity.iter().map(|v| v.signum()).collect(),
+        vec![1.0; n],
+    ];
+    match fit::least_squares(&cols, &p.input) {
+        Ok(f) => p
+            .input
+            .iter()
+            .zip(&f.residual)
+            .map(|(u, e)| u - e)
+            .collect(),
+        Err(_) => p.input.clone(),
+    }
+}
+
+/// Regressor columns of every parameter of a model, in [`Model::params`] order.
+pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
+    let t = p.trajectory();
+    let mut cols = vec![p.acceleration.clone()];
+    for e in &model.effects {
+        let mut c = fingerprint(e.kind, &t, &e.shape);
+        c.resize(e.params.len(), vec![0.0; p.len()]);
+        cols.extend(c);
+    }
+    cols
+}
+
+/// The free-parameter regression: columns of free parameters and the input minus the
+/// contribution of fixed ones.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// Free columns.
+    pub cols: Vec<Vec<f64>>,
+    /// Target.
+    pub y: Vec<f64>,
+    /// Index into [`Model::params`] of each free column.
+    pub free: Vec<usize>,
+}
+
+/// Build the free-parameter regression of a model.
+pub fn design(model: &Model, p: &Prepared) -> Design {
+    let all = columns(model, p);
+    let params = model.params();
+    let mut y = p.input.clone();
+    let mut cols = Vec::new();
+    let mut free = Vec::new();
+    for (i, (c, par)) in all.into_iter().zip(params).enumerate() {
+        if par.free {
+            cols.push(c);
+            free.push(i);
+        } else {
+            for (yy, x) in y.iter_mut().zip(&c) {
+                *yy -= par.value * x;
+            }
+        }
+    }
+    Design { cols, y, free }
+}
+
+/// Fit all free amplitudes by linear least squares; writes values and 1σ into the model.
+pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
+    let d = design(model, p);
+    let f = fit::least_squares(&d.cols, &d.y)?;
+    let mut params = model.params_mut();
+    for (k, &i) in d.free.iter().enumerate() {
+        params[i].value = f.theta[k];
+        params[i].sigma = Some(f.sigma(k));
+    }
+    Ok(f)
+}
+
+/// Equation-error prediction of the input.
+pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
+    let cols = columns(model, p);
+    let mut u = vec![0.0; p.len()];
+    for (c, par) in cols.iter().zip(model.params()) {
+        for (uu, x) in u.iter_mut().zip(c) {
+            *uu += par.value * x;
+        }
+    }
+    u
+}
+
+/// Measured, predicted and residual series with the signals the localisation needs.
+#[derive(Debug, Clone)]
+pub struct Residual {
+    /// Which residual.
+    pub mode: Mode,
+    /// Time.
+    pub time: Vec<f64>,
+    /// Measured signal (input for equation error, position for output error).
+    pub measured: Vec<f64>,
+    /// Model prediction of it.
+    pub predicted: Vec<f64>,
+    /// measured − predicted.
+    pub residual: Vec<f64>,
+    /// Velocity (smoothed).
+    pub velocity: Vec<f64>,
+    /// Position (smoothed).
+    pub position: Vec<f64>,
+    /// Measured input.
+    pub input: Vec<f64>,
+    /// Noise floor of this residual, if known from the data (equation error: see
+    /// [`Prepared::noise_floor`]); otherwise the metrics estimate it from the residual.
+    pub noise_floor: Option<f64>,
+}
+
+/// Equation-error residual of a model on prepared data.
+pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
+    let pred = predict(model, p);
+    Residual {
+        mode: Mode::Equation,
+        time: p.time.clone(),
+        measured: p.input.clone(),
+        residual: p.input.iter().zip(&pred).map(|(a, b)| a - b).collect(),
+        predicted: pred,
+        velocity: p.velocity.clone(),
+        position: p.position.clone(),
+        input: p.input.clone(),
+        noise_floor: Some(p.noise_floor),
+    }
+}
+
+/// Force the model applies besides inertia at one state (for simulation). History-dependent
+/// fingerprints (backlash gap state, compliance derivatives, delay) are evaluated on a
+/// single sample and so contribute their memoryless part only.
+pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -> f64 {
+    let (xs, vs, as_, us) = ([x], [v], [a], [u]);
+    let t = Trajectory {
+        dt,
+        input: &us,
+        position: &xs,
+        velocity: &vs,
+        acceleration: &as_,
+    };
+    let mut f = 0.0;
+    for e in &model.effects {
+        for (c, par) in fingerprint(e.kind, &t, &e.shape).iter().zip(&e.params) {
+            f += par.value * c[0];
+        }
+    }
+    f
+}
+
+/// Simulate the model from the measured input (output error). Returns simulated position.
+pub fn simulate(model: &Model, time: &[f64], input: &[f64], x0: f64, v0: f64) -> Vec<f64> {
+    let m = model.inertia.value;
+    let n = time.len();
+    let mut xs = Vec::with_capacity(n);
+    let (mut x, mut v, mut a) = (x0, v0, 0.0);
+    const SUB: usize = 4;
+    for k in 0..n {
+        xs.push(x);
+        if k + 1 == n {
+            break;
+        }
+        let dt = time[k + 1] - time[k];
+        let h = dt / SUB as f64;
+        let u = input[k];
+        let acc = |x: f64, v: f64, a: f64| (u - effect_force_at(model, dt, x, v, a, u)) / m;
+        for _ in 0..SUB {
+            let k1v = acc(x, v, a);
+            let k1x = v;
+            let k2v = acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v, k1v);
+            let k2x = v + 0.5 * h * k1v;
+            let k3v = acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v, k2v);
+            let k3x = v + 0.5 * h * k2v;
+            let k4v = acc(x + h * k3x, v + h * k3v, k3v);
+            let k4x = v + h * k3v;
+            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+            a = k4v;
+        }
+    }
+    xs
+}
+
+/// Output-error residual of a model on prepared data (raw measured position vs simulation).
+pub fn output_error(model: &Model, p: &Prepared) -> Residual {
+    let sim = simulate(model, &p.time, &p.input, p.position[0], p.velocity[0]);
+    Residual {
+        mode: Mode::Output,
+        time: p.time.clone(),
+        measured: p.raw_position.clone(),
+        residual: p
+            .raw_position
+            .iter()
+            .zip(&sim)
+            .map(|(a, b)| a - b)
+            .collect(),
+        predicted: sim,
+        velocity: p.velocity.clone(),
+        position: p.position.clone(),
+        input: p.input.clone(),
+        noise_floor: None,
+    }
+}

@@ -1,0 +1,204 @@
+//! Hidden-effect trial bench: ≥ 200 trials per family (default), confusion matrix, hit rates,
+//! null false-alarm rate, refit-to-noise-floor rate, pair (`--auto`) rate.
+//!
+//! ```sh
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
+//! ```
+//! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use jointlab_tests::hidden::{run, Family, Outcome};
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let trials: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(200);
+    let seed0: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let rhos = [0.5, 1.0, 2.0, 4.0];
+    // `hidden-trials one FAMILY SEED RHO`: run and print a single trial (debugging aid).
+    if std::env::args().nth(1).as_deref() == Some("one") {
+        let a: Vec<String> = std::env::args().skip(2).collect();
+        let fam: Vec<Family> = Family::ALL
+            .iter()
+            .copied()
+            .filter(|f| a[0].split('+').any(|n| n == f.name()))
+            .collect();
+        let o = run(a[1].parse().unwrap_or(1), &fam, a[2].parse().unwrap_or(1.0));
+        println!("{o:?}");
+        return;
+    }
+    let t0 = Instant::now();
+    let pair_fams = [
+        (Family::Coulomb, Family::Offset),
+        (Family::Coulomb, Family::Ripple),
+        (Family::Gravity, Family::Asymmetry),
+        (Family::Offset, Family::Delay),
+        (Family::Asymmetry, Family::Ripple),
+    ];
+    // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
+    let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
+    for (fi, f) in Family::ALL.iter().enumerate() {
+        for i in 0..trials {
+            jobs.push((
+                0,
+                seed0 * 1_000_003 + (fi as u64) * 100_000 + i as u64,
+                vec![*f],
+                rhos[i % rhos.len()],
+            ));
+        }
+    }
+    for i in 0..trials {
+        jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
+    }
+    for i in 0..trials / 2 {
+        let (a, b) = pair_fams[i % pair_fams.len()];
+        jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
+    }
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<(usize, Option<Outcome>)> = std::thread::scope(|sc| {
+        let hs: Vec<_> = (0..workers)
+            .map(|_| {
+                sc.spawn(|| {
+                    let mut out = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= jobs.len() {
+                            break;
+                        }
+                        let (_, seed, fams, rho) = &jobs[k];
+                        out.push((k, run(*seed, fams, *rho)));
+                        if k.is_multiple_of(50) {
+                            eprintln!(
+                                "{k}/{} trials ({:.0} s)",
+                                jobs.len(),
+                                t0.elapsed().as_secs_f64()
+                            );
+                        }
+                    }
+                    out
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .flat_map(|h| h.join().expect("worker"))
+            .collect()
+    });
+    let mut all: Vec<Outcome> = Vec::new();
+    let mut nulls = Vec::new();
+    let mut pairs = Vec::new();
+    let mut unstable = 0usize;
+    let mut sorted = results;
+    sorted.sort_by_key(|(k, _)| *k);
+    for (k, o) in sorted {
+        match (jobs[k].0, o) {
+            (_, None) => unstable += 1,
+            (0, Some(o)) => all.push(o),
+            (1, Some(o)) => nulls.push(o),
+            (_, Some(o)) => pairs.push(o),
+        }
+    }
+
+    // Confusion matrix: rows = hidden family, columns = rank-1 candidate.
+    let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
+    let mut cols: Vec<String> = names.iter().map(|s| s.to_string()).collect();
+    for o in &all {
+        if let Some(t) = &o.top {
+            if !cols.contains(t) {
+                cols.push(t.clone());
+            }
+        }
+    }
+    println!("\nconfusion matrix, measured ρ ≥ 1 (rows: hidden effect, columns: rank-1 candidate)");
+    print!("{:<13}", "");
+    for c in &cols {
+        print!("{:>7}", &c[..c.len().min(6)]);
+    }
+    println!();
+    for f in Family::ALL {
+        print!("{:<13}", f.name());
+        for c in &cols {
+            let n = all
+                .iter()
+                .filter(|o| {
+                    o.families[0] == f && o.rho >= 1.0 && o.top.as_deref() == Some(c.as_str())
+                })
+                .count();
+            print!("{:>7}", n);
+        }
+        println!();
+    }
+    println!(
+        "\n{:<13} {:>14} {:>16} {:>16} {:>18}",
+        "family", "rank1 ρ≥1", "rank1 0.5≤ρ<1", "verdict ρ≥1", "val≤1.1·floor ρ≥1"
+    );
+    let mut summary = BTreeMap::new();
+    for f in Family::ALL {
+        let hi: Vec<&Outcome> = all
+            .iter()
+            .filter(|o| o.families[0] == f && o.rho >= 1.0)
+            .collect();
+        let mid: Vec<&Outcome> = all
+            .iter()
+            .filter(|o| o.families[0] == f && o.rho >= 0.5 && o.rho < 1.0)
+            .collect();
+        let rate = |v: &[&Outcome], p: &dyn Fn(&Outcome) -> bool| -> String {
+            if v.is_empty() {
+                "–".into()
+            } else {
+                format!(
+                    "{:.1}% ({}/{})",
+                    100.0 * v.iter().filter(|o| p(o)).count() as f64 / v.len() as f64,
+                    v.iter().filter(|o| p(o)).count(),
+                    v.len()
+                )
+            }
+        };
+        let r1 = rate(&hi, &|o| o.rank1_ok());
+        println!(
+            "{:<13} {:>14} {:>16} {:>16} {:>18}",
+            f.name(),
+            r1,
+            rate(&mid, &|o| o.rank1_ok()),
+            rate(&hi, &|o| o.verdict.as_deref() == Some(o.families[0].name())),
+            rate(&hi, &|o| o.val_ratio <= 1.1)
+        );
+        summary.insert(f.name(), r1);
+    }
+    let fa = nulls.iter().filter(|o| !o.null_ok()).count();
+    println!(
+        "\nnull trials: {} of {} flagged a missing effect (false-alarm rate {:.1} %)",
+        fa,
+        nulls.len(),
+        100.0 * fa as f64 / nulls.len() as f64
+    );
+    let mut fa_by: BTreeMap<String, usize> = BTreeMap::new();
+    for o in nulls.iter().filter(|o| !o.null_ok()) {
+        *fa_by
+            .entry(o.verdict.clone().unwrap_or_default())
+            .or_default() += 1;
+    }
+    if !fa_by.is_empty() {
+        println!("  false alarms by effect: {fa_by:?}");
+    }
+    let pok = pairs.iter().filter(|o| o.pair_ok()).count();
+    println!(
+        "pairs (--auto, ρ≈2 each): both found in {} of {} ({:.1} %)",
+        pok,
+        pairs.len(),
+        100.0 * pok as f64 / pairs.len().max(1) as f64
+    );
+    for o in pairs.iter().filter(|o| !o.pair_ok()).take(10) {
+        println!(
+            "  missed: hidden {:?}, added {:?}",
+            o.families.iter().map(|f| f.name()).collect::<Vec<_>>(),
+            o.auto_added
+        );
+    }
+    println!("unstable (skipped) trials: {unstable}");
+    println!("trials per family: {trials}; workers: {workers}");
+    println!("total {:.1} s", t0.elapsed().as_secs_f64());
+}

@@ -1,0 +1,572 @@
+//! Hidden-effect trials: simulate a joint with one (or two) effects the model does not have,
+//! and check that `diagnose` names it, `fit --add` removes it, and null trials stay quiet.
+//!
+//! * The truth ([`truth`]) is an independent two-mass + LuGre + RK4 simulator.
+//! * Each trial draws the plant (inertias, viscous friction over a decade), the excitation
+//!   (closed-loop PD tracking, or feed-forward + soft PD, following a random multi-sine +
+//!   triangle reference with enough reversals and travel), a little broadband dither on the
+//!   command, input sensor noise and encoder quantisation (2¹⁶ counts/rev), and the hidden
+//!   effect's shape parameters over a decade.
+//! * **Strength** ρ = excess RMS of the best baseline fit over the noise:
+//!   `ρ = √(RMS_b² − RMS_0²)/RMS_0`, where `RMS_b` is the baseline's equation-error RMS on the
+//!   trial and `RMS_0` on its *twin* — the same excitation, noise and seeds with the effect
+//!   switched off. The effect amplitude is set by two secant steps to hit a target ρ; the
+//!   measured ρ is what is reported.
+//! * **Noise floor** for the refit check = the baseline's RMS on the validation twin (fitted on
+//!   the estimation twin): the best a correct model can do on that record.
+
+pub mod truth;
+
+use hil_host::workbench::data::{Columns, Recording};
+use hil_host::workbench::diagnose::{diagnose, Options};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::{self, Prepared};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use sim_plant::effects::{EffectKind, Shape};
+
+use truth::{Controller, Plant};
+
+/// Hidden-effect families (the vocabulary minus `viscous`, which the baseline has).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Family {
+    /// Constant torque offset.
+    Offset,
+    /// Coulomb friction (LuGre with Fs = Fc).
+    Coulomb,
+    /// Direction-dependent viscous friction.
+    Asymmetry,
+    /// Stiction above Coulomb (LuGre Fs > Fc); the starting model already has Coulomb.
+    Stribeck,
+    /// Dead zone in the transmission.
+    Backlash,
+    /// Finite transmission stiffness.
+    Compliance,
+    /// Load-position-periodic torque.
+    Ripple,
+    /// Gravity on the load.
+    Gravity,
+    /// Pure input delay.
+    Delay,
+    /// D/A quantisation of the applied torque.
+    Quantization,
+}
+
+impl Family {
+    /// All families.
+    pub const ALL: [Family; 10] = [
+        Family::Offset,
+        Family::Coulomb,
+        Family::Asymmetry,
+        Family::Stribeck,
+        Family::Backlash,
+        Family::Compliance,
+        Family::Ripple,
+        Family::Gravity,
+        Family::Delay,
+        Family::Quantization,
+    ];
+
+    /// The workbench effect name it should be diagnosed as.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Offset => "offset",
+            Family::Coulomb => "coulomb",
+            Family::Asymmetry => "asymmetry",
+            Family::Stribeck => "stribeck",
+            Family::Backlash => "backlash",
+            Family::Compliance => "compliance",
+            Family::Ripple => "ripple",
+            Family::Gravity => "gravity",
+            Family::Delay => "delay",
+            Family::Quantization => "quantization",
+        }
+    }
+
+    /// Library effect.
+    pub fn kind(self) -> EffectKind {
+        EffectKind::from_name(self.name()).expect("family names are library names")
+    }
+}
+
+/// Everything drawn for one trial except the effect amplitude.
+#[derive(Debug, Clone)]
+pub struct Draw {
+    base: Plant,
+    shape: f64,
+    phase: f64,
+    sign: f64,
+    est: Excitation,
+    val: Excitation,
+    noise_u: f64,
+}
+
+#[derive(Debug, Clone)]
+struct Excitation {
+    reference: Vec<f64>,
+    velocity: Vec<f64>,
+    accel: Vec<f64>,
+    dither: Vec<f64>,
+    input_noise: Vec<f64>,
+    sensor_noise: Vec<f64>,
+    kp: f64,
+    kd: f64,
+    feedforward: bool,
+}
+
+/// Differentiator cut-off for the trials [Hz] (`HIDDEN_CUTOFF` overrides, for experiments).
+pub fn cutoff() -> Option<f64> {
+    std::env::var("HIDDEN_CUTOFF")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .or(Some(CUTOFF_HZ))
+}
+
+/// The trials' differentiator cut-off: 5× above the fastest reference component and the
+/// compliance modes down to 6 Hz, far enough below the rate at which 2¹⁶-count encoder
+/// quantisation dominates the second derivative.
+pub const CUTOFF_HZ: f64 = 40.0;
+
+/// Samples per record (20 s at 1 kHz).
+pub const N: usize = 20_000;
+/// Sample period.
+pub const DT: f64 = 1e-3;
+const ENCODER: f64 = std::f64::consts::TAU / 65_536.0;
+
+fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    (rng.random_range(lo.ln()..hi.ln())).exp()
+}
+
+fn excitation(rng: &mut ChaCha8Rng, j: f64, noise_u: f64) -> Excitation {
+    let n = N + 4;
+    let mut r = vec![0.0; n];
+    let travel = log_uniform(rng, 0.8, 3.0);
+    let k = rng.random_range(2..=4);
+    for _ in 0..k {
+        let f = log_uniform(rng, 0.1, 1.2);
+        let a = travel / k as f64 * rng.random_range(0.5..1.0);
+        let ph = rng.random_range(0.0..std::f64::consts::TAU);
+        for (i, v) in r.iter_mut().enumerate() {
+            *v += a * (std::f64::consts::TAU * f * i as f64 * DT + ph).sin();
+        }
+    }
+    // A triangle gives constant-velocity plateaus (friction maps) and clean reversals.
+    let tp = rng.random_range(2.0..6.0);
+    let ta = travel * rng.random_range(0.2..0.5);
+    for (i, v) in r.iter_mut().enumerate() {
+        let ph = (i as f64 * DT / tp).rem_euclid(1.0);
+        *v += ta * (4.0 * (ph - 0.5).abs() - 1.0);
+    }
+    // Smooth the corners so the reference acceleration stays bounded (3 passes of a 50 ms box).
+    for _ in 0..3 {
+        let w = 25;
+        let c = r.clone();
+        for (i, ri) in r.iter_mut().enumerate() {
+            let (lo, hi) = (i.saturating_sub(w), (i + w).min(n - 1));
+            *ri = c[lo..=hi].iter().sum::<f64>() / (hi - lo + 1) as f64;
+        }
+    }
+    let vel: Vec<f64> = (0..n)
+        .map(|i| (r[(i + 1).min(n - 1)] - r[i.saturating_sub(1)]) / (2.0 * DT))
+        .collect();
+    let acc: Vec<f64> = (0..n)
+        .map(|i| (vel[(i + 1).min(n - 1)] - vel[i.saturating_sub(1)]) / (2.0 * DT))
+        .collect();
+    let feedforward = rng.random_bool(0.5);
+    let wc = std::f64::consts::TAU
+        * if feedforward {
+            log_uniform(rng, 0.5, 2.0)
+        } else {
+            log_uniform(rng, 3.0, 8.0)
+        };
+    let dn = Normal::new(0.0, 1.0).expect("normal");
+    let dither_level = log_uniform(rng, 0.1, 0.5) * j;
+    Excitation {
+        reference: r,
+        velocity: vel,
+        accel: acc,
+        dither: (0..n).map(|_| dither_level * dn.sample(rng)).collect(),
+        input_noise: (0..n).map(|_| noise_u * dn.sample(rng)).collect(),
+        sensor_noise: (0..n).map(|_| 0.2 * ENCODER * dn.sample(rng)).collect(),
+        kp: j * wc * wc,
+        kd: 2.0 * 0.7 * j * wc,
+        feedforward,
+    }
+}
+
+/// Draw a trial's plant, shapes and excitations.
+pub fn draw(seed: u64) -> Draw {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let j1 = log_uniform(&mut rng, 1e-3, 1e-2);
+    let j2 = log_uniform(&mut rng, 3e-3, 3e-2);
+    let b = log_uniform(&mut rng, 0.005, 0.05);
+    let base = Plant::rigid(j1, j2, b);
+    let noise_u = log_uniform(&mut rng, 0.002, 0.01);
+    let shape = rng.random_range(0.0..1.0);
+    let phase = rng.random_range(0.0..std::f64::consts::TAU);
+    let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let est = excitation(&mut rng, j1 + j2, noise_u);
+    let val = excitation(&mut rng, j1 + j2, noise_u);
+    Draw {
+        base,
+        shape,
+        phase,
+        sign,
+        est,
+        val,
+        noise_u,
+    }
+}
+
+/// The plant with `family` at amplitude `a` (the unit depends on the family).
+pub fn with_effect(d: &Draw, base: &Plant, family: Family, a: f64, travel: f64) -> Plant {
+    let mut p = *base;
+    // `shape` ∈ [0,1) → a decade.
+    let decade = |lo: f64| lo * 10f64.powf(d.shape);
+    match family {
+        Family::Offset => p.offset = d.sign * a,
+        Family::Coulomb => {
+            p.fc = a;
+            p.fs = a;
+        }
+        Family::Asymmetry => p.b_pos = base.b_pos + a,
+        Family::Stribeck => {
+            p.fs = p.fc + a;
+            p.vs = decade(0.02);
+        }
+        Family::Backlash => p.backlash = a,
+        Family::Compliance => {
+            let f = (60.0 / a.max(1e-6).sqrt()).max(6.0);
+            let w = std::f64::consts::TAU * f;
+            let jr = p.j1 * p.j2 / (p.j1 + p.j2);
+            p.k = jr * w * w;
+            p.c = 2.0 * 0.05 * jr * w;
+        }
+        Family::Ripple => {
+            p.ripple_amp = a;
+            p.ripple_period = travel / decade(3.0);
+            p.ripple_phase = d.phase;
+        }
+        Family::Gravity => {
+            p.gravity = a;
+            p.gravity_phase = d.phase;
+        }
+        Family::Delay => p.delay = a.min(0.006),
+        Family::Quantization => p.quantum = a,
+    }
+    p
+}
+
+struct Pd<'a> {
+    e: &'a Excitation,
+    prev: f64,
+    vf: f64,
+    j: f64,
+    b: f64,
+}
+
+impl Controller for Pd<'_> {
+    fn command(&mut self, k: usize, meas: f64) -> f64 {
+        let v = if k == 0 { 0.0 } else { (meas - self.prev) / DT };
+        self.prev = meas;
+        // 1st-order 150 Hz velocity filter, as a motor card would have.
+        let alpha = 1.0 - (-std::f64::consts::TAU * 150.0 * DT).exp();
+        self.vf += alpha * (v - self.vf);
+        let e = self.e;
+        let mut u = e.kp * (e.reference[k] - meas) + e.kd * (e.velocity[k] - self.vf) + e.dither[k];
+        if e.feedforward {
+            u += self.j * e.accel[k] + self.b * e.velocity[k];
+        }
+        u
+    }
+}
+
+/// Simulate one record of plant `p` under excitation `e`.
+fn record(p: &Plant, e: &Excitation, label: &str) -> Recording {
+    let mut ctl = Pd {
+        e,
+        prev: e.reference[0],
+        vf: 0.0,
+        j: p.j1 + p.j2,
+        b: p.b_pos,
+    };
+    let mut k = 0;
+    let mut sense = |x: f64| {
+        let m = ENCODER * ((x + e.sensor_noise[k]) / ENCODER).round();
+        k += 1;
+        m
+    };
+    let mut j = 0;
+    let mut log = |x: f64| {
+        let m = ENCODER * ((x + e.sensor_noise[(j + N / 2) % N]) / ENCODER).round();
+        j += 1;
+        m
+    };
+    let m = truth::simulate(
+        p,
+        &mut ctl,
+        N,
+        DT,
+        10,
+        e.reference[0],
+        truth::Sensors {
+            control: &mut sense,
+            log: &mut log,
+        },
+    );
+    Recording {
+        path: label.into(),
+        input: m
+            .command
+            .iter()
+            .zip(&e.input_noise)
+            .map(|(u, n)| u + n)
+            .collect(),
+        time: m.time,
+        output: m.motor_position,
+        load_output: None,
+        dt: DT,
+        units: ("N·m".into(), "rad".into()),
+        columns: Columns::new("torque_Nm", "q_rad"),
+    }
+}
+
+/// The starting model a family is diagnosed against: the default baseline, plus Coulomb for
+/// Stribeck (Stribeck is a refinement of Coulomb, so its truth always has Coulomb too).
+pub fn start_model(families: &[Family]) -> Model {
+    let mut m = Model::baseline();
+    if families.contains(&Family::Stribeck) {
+        m.add(EffectKind::Coulomb, Shape::default());
+    }
+    m
+}
+
+fn fitted_rms(model: &Model, p: &Prepared) -> (f64, Model) {
+    let mut m = model.clone();
+    if refine::refit_all(&mut m, p).is_err() {
+        return (f64::NAN, m);
+    }
+    let r = residual::equation_error(&m, p).residual;
+    (
+        (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt(),
+        m,
+    )
+}
+
+fn rho(b: f64, floor: f64) -> f64 {
+    (b * b - floor * floor).max(0.0).sqrt() / floor
+}
+
+/// A generated trial: estimation and validation records with the hidden effect(s), and their
+/// effect-free twins' numbers.
+#[derive(Debug, Clone)]
+pub struct Trial {
+    /// Hidden families (empty = null trial).
+    pub families: Vec<Family>,
+    /// Estimation record.
+    pub est: Recording,
+    /// Validation record.
+    pub val: Recording,
+    /// Measured strength on the estimation record.
+    pub rho: f64,
+    /// Baseline RMS on the estimation twin.
+    pub floor_est: f64,
+    /// Noise floor on validation: baseline (fitted on the estimation twin) on the validation twin.
+    pub floor_val: f64,
+    /// Input sensor noise σ.
+    pub noise_u: f64,
+}
+
+/// Generate a trial with `families` hidden, each scaled to `target_rho` on its own. `None` if
+/// the drawn loop is unstable with the effect (a delay or backlash can destabilise the PD
+/// loop; such runs are not a diagnosis problem and are counted separately).
+pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial> {
+    let d = draw(seed);
+    let mut base = d.base;
+    if families.contains(&Family::Stribeck) {
+        // Coulomb is part of the truth (and of the starting model); 1–10 noise levels.
+        let fc = d.noise_u * 10f64.powf(d.shape) * 2.0;
+        base.fc = fc;
+        base.fs = fc;
+    }
+    let start = start_model(families);
+    let twin_e = record(&base, &d.est, "twin-est");
+    let twin_v = record(&base, &d.val, "twin-val");
+    let pe0 = Prepared::new(&twin_e, cutoff());
+    let (floor_est, m0) = fitted_rms(&start, &pe0);
+    let pv0 = Prepared::new(&twin_v, cutoff());
+    let rv = residual::equation_error(&m0, &pv0).residual;
+    let floor_val = (rv.iter().map(|v| v * v).sum::<f64>() / rv.len() as f64).sqrt();
+    let travel = {
+        let (lo, hi) = pe0
+            .position
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        hi - lo
+    };
+    let mean_speed = pe0.velocity.iter().map(|v| v.abs()).sum::<f64>() / pe0.len() as f64;
+    let mut plant = base;
+    for &f in families {
+        let a0 = match f {
+            Family::Offset | Family::Coulomb => floor_est,
+            Family::Asymmetry => floor_est / mean_speed.max(1e-6),
+            Family::Stribeck => 2.0 * floor_est,
+            Family::Backlash => 0.01 * travel,
+            Family::Compliance => 1.0,
+            Family::Ripple | Family::Gravity => 1.4 * floor_est,
+            Family::Delay => 0.002,
+            Family::Quantization => 3.5 * floor_est,
+        };
+        // Two secant steps on the amplitude for the target strength (ρ is ~linear in it).
+        let mut a = a0;
+        for _ in 0..2 {
+            let p = with_effect(&d, &plant, f, a, travel);
+            let r = record(&p, &d.est, "calib");
+            let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
+            let rr = rho(b, floor_est);
+            a *= if !rr.is_finite() {
+                0.3 // diverged: back off
+            } else if rr > 1e-3 {
+                (target_rho / rr).clamp(0.05, 20.0)
+            } else {
+                20.0
+            };
+        }
+        plant = with_effect(&d, &plant, f, a, travel);
+    }
+    let est = record(&plant, &d.est, &format!("hidden seed {seed} est"));
+    let val = record(&plant, &d.val, &format!("hidden seed {seed} val"));
+    let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
+    let r = rho(b, floor_est);
+    let bounded = |rec: &Recording| {
+        rec.output
+            .iter()
+            .chain(&rec.input)
+            .all(|x| x.is_finite() && x.abs() < 1e6)
+            && rec.output.iter().all(|x| x.abs() < 50.0)
+    };
+    if !r.is_finite() || r > 20.0 * target_rho.max(1.0) || !bounded(&est) || !bounded(&val) {
+        return None;
+    }
+    Some(Trial {
+        families: families.to_vec(),
+        rho: r,
+        est,
+        val,
+        floor_est,
+        floor_val,
+        noise_u: d.noise_u,
+    })
+}
+
+/// What one trial showed.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Hidden families.
+    pub families: Vec<Family>,
+    /// Measured strength.
+    pub rho: f64,
+    /// Rank-1 candidate.
+    pub top: Option<String>,
+    /// Verdict (None = "no significant missing effect").
+    pub verdict: Option<String>,
+    /// Validation RMS after `fit --add <truth>` / noise floor.
+    pub val_ratio: f64,
+    /// Effects `--auto` added (pair trials).
+    pub auto_added: Vec<String>,
+}
+
+impl Outcome {
+    /// Rank-1 candidate is the hidden effect.
+    pub fn rank1_ok(&self) -> bool {
+        self.families.len() == 1 && self.top.as_deref() == Some(self.families[0].name())
+    }
+    /// Null trial stayed quiet.
+    pub fn null_ok(&self) -> bool {
+        self.families.is_empty() && self.verdict.is_none()
+    }
+    /// Both hidden effects were added by `--auto`.
+    pub fn pair_ok(&self) -> bool {
+        self.families.len() == 2
+            && self
+                .families
+                .iter()
+                .all(|f| self.auto_added.iter().any(|a| a == f.name()))
+    }
+}
+
+/// Run one trial: diagnose; for single-effect trials `fit --add <truth>` and score validation;
+/// for pairs `diagnose --auto`. `None` if the trial's loop was unstable.
+pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
+    let t = generate(seed, families, target_rho)?;
+    let pe = Prepared::new(&t.est, cutoff());
+    let pv = Prepared::new(&t.val, cutoff());
+    let mut model = start_model(families);
+    refine::refit_all(&mut model, &pe).ok()?;
+    let opts = Options::default();
+    let d = diagnose(&model, &pe, &opts);
+    if std::env::var_os("HIDDEN_DEBUG").is_some() {
+        eprintln!(
+            "ρ = {:.2}, floor {:.3e}\n{}",
+            t.rho,
+            t.floor_est,
+            d.to_text()
+        );
+    }
+    let mut out = Outcome {
+        families: families.to_vec(),
+        rho: t.rho,
+        top: d.candidates.first().map(|c| c.effect.clone()),
+        verdict: d.verdict.add.clone(),
+        val_ratio: f64::NAN,
+        auto_added: Vec::new(),
+    };
+    match families.len() {
+        1 => {
+            let mut m = model.clone();
+            let r = refine::fit_add(&mut m, &pe, Some(families[0].kind()), Some(&pv)).ok()?;
+            out.val_ratio = r.after_validation.expect("validation").rms / t.floor_val;
+        }
+        2 => {
+            let mut m = model.clone();
+            let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).ok()?;
+            out.auto_added = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+            out.val_ratio = run
+                .steps
+                .last()
+                .and_then(|s| s.validation)
+                .map(|v| v.rms / t.floor_val)
+                .unwrap_or(f64::NAN);
+        }
+        _ => {}
+    }
+    Some(out)
+}
+
+/// A long record for speed measurements: `repeats` estimation records of different draws
+/// (coulomb hidden at ρ ≈ 2) laid end to end, re-timed to one uniform clock.
+pub fn long_record(seed: u64, repeats: usize) -> Recording {
+    let mut out: Option<Recording> = None;
+    let mut s = seed;
+    while out.as_ref().map_or(0, |r| r.input.len()) < repeats * N {
+        s += 1;
+        let Some(t) = generate(s, &[Family::Coulomb], 2.0) else {
+            continue;
+        };
+        match &mut out {
+            None => out = Some(t.est),
+            Some(r) => {
+                let off = r.output[r.len() - 1] - t.est.output[0];
+                r.input.extend(&t.est.input);
+                r.output.extend(t.est.output.iter().map(|x| x + off));
+            }
+        }
+    }
+    let mut r = out.expect("at least one record");
+    r.time = (0..r.input.len()).map(|k| k as f64 * DT).collect();
+    r
+}

@@ -1,0 +1,201 @@
+//! Workbench interface: CSV errors name file, line and column; the CLI commands run end to
+//! end on a recording and write what they promise; `diagnose --json` has the agreed shape.
+
+use std::path::{Path, PathBuf};
+
+use clap::Parser;
+use hil_host::cli::{run, Cli};
+use hil_host::workbench::data::{self, Columns};
+use hil_host::workbench::diagnose::{diagnose, Options};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::Prepared;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("jointlab-wb-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A synthetic recording: mass 2 kg, viscous 3, Coulomb 0.8 N, tracked by a PD loop.
+fn synth(path: &Path) {
+    let dt = 1e-3;
+    let (m, b, fc) = (2.0, 3.0, 0.8);
+    let (mut x, mut v) = (0.0f64, 0.0f64);
+    let mut s = String::from("time_s,force_N,pos_mm\n");
+    let mut seed = 7u64;
+    let mut rnd = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    for k in 0..8000 {
+        let t = k as f64 * dt;
+        let r = 0.05 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
+            + 0.02 * (2.0 * std::f64::consts::PI * 1.9 * t).sin();
+        let u = 400.0 * (r - x) - 40.0 * v + 0.5 * rnd();
+        for j in 0..10 {
+            if j == 5 {
+                // log the position mid-way through the hold interval of u (no ZOH half-sample lag)
+                s.push_str(&format!("{t},{},{}\n", u + 0.01 * rnd(), 1e3 * x));
+            }
+            let h = dt / 10.0;
+            let a = (u - b * v - fc * v.signum()) / m;
+            v += h * a;
+            x += h * v;
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn csv_errors_say_file_line_column() {
+    let d = tmp("csv");
+    let cols = Columns::new("u_N", "y_m");
+    let cases = [
+        ("missing.csv", "time_s,u_N\n0,1\n", "no column `y_m`", ":1:"),
+        (
+            "text.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.001,abc,2\n",
+            "`abc` is not a number",
+            ":3:",
+        ),
+        (
+            "nan.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.001,1,NaN\n",
+            "NaN/inf",
+            ":3:",
+        ),
+        (
+            "time.csv",
+            "time_s,u_N,y_m\n0,1,2\n0.002,1,2\n0.001,1,2\n",
+            "does not increase",
+            ":4:",
+        ),
+    ];
+    for (name, body, what, line) in cases {
+        let mut body = body.to_string();
+        // pad with good rows so only the planted defect can fail
+        for k in 0..60 {
+            body.push_str(&format!("{},1,2\n", 1.0 + k as f64 * 1e-3));
+        }
+        let p = d.join(name);
+        std::fs::write(&p, body).unwrap();
+        let e = data::load(&p, &cols).unwrap_err().to_string();
+        assert!(e.contains(name), "{e}");
+        assert!(e.contains(what), "{e}");
+        assert!(e.contains(line), "{e}");
+        if what != "no column `y_m`" {
+            assert!(e.contains("column `"), "{e}");
+        }
+    }
+}
+
+#[test]
+fn units_from_suffix() {
+    let d = tmp("units");
+    let p = d.join("rec.csv");
+    synth(&p);
+    let r = data::load(&p, &Columns::new("force_N", "pos_mm")).unwrap();
+    assert_eq!(r.units.1, "m");
+    assert!(
+        r.output.iter().fold(0.0f64, |m, v| m.max(v.abs())) < 0.1,
+        "mm were not converted to m"
+    );
+}
+
+#[test]
+fn diagnose_fit_and_compare_end_to_end() {
+    let d = tmp("e2e");
+    let rec = d.join("rec.csv");
+    synth(&rec);
+    let rec_s = rec.to_str().unwrap();
+    let cols = Columns::new("force_N", "pos_mm");
+    let p = Prepared::new(&data::load(&rec, &cols).unwrap(), None);
+    let mut model = Model::baseline();
+    refine::refit_all(&mut model, &p).unwrap();
+    let dg = diagnose(&model, &p, &Options::default());
+    let j = dg.to_json();
+    assert!(j["residual_mode"].is_string());
+    for k in ["fit_percent", "rms", "noise_floor_rms", "ljung_box_p"] {
+        assert!(j["baseline"][k].is_f64(), "baseline.{k}");
+    }
+    let c0 = &j["candidates"][0];
+    assert_eq!(c0["rank"], 1);
+    assert!(c0["statistic"].is_f64() && c0["p_value"].is_f64() && c0["effect"].is_string());
+    assert!(j["verdict"]["ambiguous_with"].is_array());
+    assert_eq!(j["verdict"]["add"], "coulomb", "{}", dg.to_text());
+
+    // fit --add coulomb writes a model whose Coulomb level is the simulated 0.8 N
+    let out = d.join("fitted.toml");
+    run(Cli::parse_from([
+        "hil-host",
+        "fit",
+        rec_s,
+        "--input",
+        "force_N",
+        "--output",
+        "pos_mm",
+        "--add",
+        "coulomb",
+        "--save-model",
+        out.to_str().unwrap(),
+    ]))
+    .unwrap();
+    let m = Model::load(&out).unwrap();
+    let fc = m
+        .effects
+        .iter()
+        .find(|e| e.kind.name() == "coulomb")
+        .unwrap()
+        .params[0]
+        .clone();
+    assert!((fc.value - 0.8).abs() < 0.1, "fc {}", fc.value);
+    assert!((m.inertia.value - 2.0).abs() < 0.1, "m {}", m.inertia.value);
+    assert!(fc.sigma.unwrap() > 0.0);
+
+    // compare writes the HTML report with the five plots inlined
+    let rep = d.join("report");
+    run(Cli::parse_from([
+        "hil-host",
+        "compare",
+        rec_s,
+        "--input",
+        "force_N",
+        "--output",
+        "pos_mm",
+        "--model",
+        out.to_str().unwrap(),
+        "--out",
+        rep.to_str().unwrap(),
+        "--png",
+    ]))
+    .unwrap();
+    let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
+    assert_eq!(html.matches("<svg").count(), 5);
+    for id in [
+        "overlay",
+        "residual_time",
+        "residual_velocity",
+        "residual_position",
+        "residual_spectrum",
+    ] {
+        assert!(
+            rep.join(format!("{id}.svg")).exists() && rep.join(format!("{id}.png")).exists(),
+            "{id}"
+        );
+    }
+    // the fitted model leaves nothing significant
+    let p2 = Prepared::new(&data::load(&rec, &cols).unwrap(), None);
+    let d2 = diagnose(&m, &p2, &Options::default());
+    assert!(d2.verdict.add.is_none(), "{}", d2.to_text());
+
+    // every subcommand has examples in --help
+    for sub in ["compare", "diagnose", "fit"] {
+        let e = Cli::try_parse_from(["hil-host", sub, "--help"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("Examples:"), "{sub}");
+    }
+}

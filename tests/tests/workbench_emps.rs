@@ -1,0 +1,172 @@
+//! Proof on real measurements: the EMPS benchmark (Janot, Gautier & Brunot 2019).
+//!
+//! From the default baseline (rigid mass + viscous, input `gtau·vir`, output `qm`):
+//! `diagnose` must point at friction first and offset must be a significant candidate; after
+//! `fit --add coulomb` and `fit --add offset` the parameters must land within 5 % of the
+//! published symmetric IDIM model; and re-simulating the fitted model inside the authors'
+//! closed loop on `DATA_EMPS_PULSES` must give a force error near the published 8.94 %.
+
+use std::path::PathBuf;
+
+use hil_host::workbench::closed_loop::{self, Cascade};
+use hil_host::workbench::data::{self, Columns};
+use hil_host::workbench::diagnose::{diagnose, Options};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::Prepared;
+use sim_plant::effects::EffectKind;
+
+const GTAU: f64 = 35.150_651_882_485_47;
+
+fn emps_dir() -> Option<PathBuf> {
+    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/emps");
+    if d.join("DATA_EMPS.csv").exists() {
+        Some(d)
+    } else {
+        eprintln!(
+            "\n!!!!!! SKIPPING EMPS TEST: {} not found (CI must have ../shared) !!!!!!\n",
+            d.display()
+        );
+        None
+    }
+}
+
+fn cols() -> Columns {
+    Columns {
+        input_gain: GTAU,
+        time: "t_s".into(),
+        ..Columns::new("vir_V", "qm_m")
+    }
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+#[test]
+fn emps_diagnose_fit_and_validate() {
+    let Some(dir) = emps_dir() else { return };
+    let rec = data::load(&dir.join("DATA_EMPS.csv"), &cols()).unwrap();
+    assert_eq!(rec.len(), 24_841);
+    let p = Prepared::new(&rec, None);
+    let opts = Options::default();
+
+    // 1. baseline → friction
+    let mut model = Model::baseline();
+    refine::refit_all(&mut model, &p).unwrap();
+    let d0 = diagnose(&model, &p, &opts);
+    println!("{}", d0.to_text());
+    let friction = ["coulomb", "stribeck", "asymmetry"];
+    let add0 = d0
+        .verdict
+        .add
+        .clone()
+        .expect("baseline must be missing something");
+    assert!(
+        friction.contains(&add0.as_str()),
+        "first verdict {add0} is not a friction effect"
+    );
+    assert_eq!(add0, "coulomb");
+
+    // 2. + coulomb → the next verdict is friction/offset, and offset is significant
+    let r1 = refine::fit_add(&mut model, &p, Some(EffectKind::Coulomb), None).unwrap();
+    assert!(r1.after.rms < 0.6 * r1.before.rms);
+    let d1 = diagnose(&model, &p, &opts);
+    println!("{}", d1.to_text());
+    let add1 = d1
+        .verdict
+        .add
+        .clone()
+        .expect("coulomb model still misses something");
+    assert!(
+        ["offset", "asymmetry"].contains(&add1.as_str()),
+        "second verdict {add1}"
+    );
+    let off = d1.candidates.iter().find(|c| c.effect == "offset").unwrap();
+    assert!(
+        off.significant && off.p_value < 1e-6,
+        "offset p {}",
+        off.p_value
+    );
+
+    // 3. + offset → the published symmetric model within 5 %
+    let val = Prepared::new(
+        &data::load(&dir.join("DATA_EMPS_PULSES.csv"), &cols()).unwrap(),
+        None,
+    );
+    let r2 = refine::fit_add(&mut model, &p, Some(EffectKind::Offset), Some(&val)).unwrap();
+    assert!(r2.after.rms < r2.before.rms);
+    let get = |owner: &str| r2.params.iter().find(|r| r.owner == owner).unwrap().clone();
+    let table = [
+        ("M [kg]", get("inertia"), 95.1089),
+        ("Fv [N·s/m]", get("viscous"), 203.5034),
+        ("Fc [N]", get("coulomb"), 20.3935),
+        ("offset [N]", get("offset"), -3.1648),
+    ];
+    println!(
+        "{:<12} {:>12} {:>10} {:>12} {:>8}",
+        "param", "fitted", "1σ", "published", "dev %"
+    );
+    for (name, row, publ) in &table {
+        println!(
+            "{:<12} {:>12.4} {:>10.4} {:>12.4} {:>8.2}",
+            name,
+            row.value,
+            row.sigma,
+            publ,
+            100.0 * rel(row.value, *publ)
+        );
+    }
+    for (name, row, publ) in &table {
+        assert!(
+            rel(row.value, *publ) < 0.05,
+            "{name}: {} vs published {publ}",
+            row.value
+        );
+        assert!(
+            row.sigma > 0.0 && row.sigma < 0.1 * row.value.abs(),
+            "{name}: σ {}",
+            row.sigma
+        );
+    }
+    println!(
+        "equation-error relative error: estimation {:.2} %, validation (PULSES) {:.2} %",
+        r2.after.relative_error_percent,
+        r2.after_validation.unwrap().relative_error_percent
+    );
+
+    // 4. closed-loop re-simulation on PULSES (output error): force error near 8.94 %
+    let v = data::load_columns(
+        &dir.join("DATA_EMPS_PULSES.csv"),
+        &["t_s", "qm_m", "qg_m", "vir_V", "pulses_V"],
+    )
+    .unwrap();
+    let (t, qm, qg, vir) = (&v[0], &v[1], &v[2], &v[3]);
+    // The pulse is already inside the measured vir; the loop adds it to the command (5 V steps).
+    let ctl = Cascade {
+        kp: 160.18,
+        kv: 243.45,
+        saturation: 10.0,
+        gain: GTAU,
+        substeps: 10,
+    };
+    let run = closed_loop::simulate(&model, &ctl, t, qg, &v[4], qm[0]);
+    let num: f64 = vir
+        .iter()
+        .zip(&run.force)
+        .map(|(u, f)| (GTAU * u - f).powi(2))
+        .sum();
+    let den: f64 = vir.iter().map(|u| (GTAU * u).powi(2)).sum();
+    let force_err = 100.0 * (num / den).sqrt();
+    let pos_max = qm
+        .iter()
+        .zip(&run.position)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    println!("closed-loop simulation on DATA_EMPS_PULSES: force error {force_err:.2} % (published 8.94 %), max position error {:.1} µm", pos_max * 1e6);
+    assert!(
+        (7.5..10.5).contains(&force_err),
+        "force error {force_err} % not near 8.94 %"
+    );
+    assert!(pos_max < 2e-4, "position error {pos_max}");
+}

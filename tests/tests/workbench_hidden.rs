@@ -1,0 +1,111 @@
+//! Hidden-effect trials, reduced for CI (the full ≥ 200-per-family run with the confusion
+//! matrix is `cargo run --release -p jointlab-tests --bin hidden-trials`).
+//!
+//! Trial counts here: 3 per family at target ρ = 2 for the six families that currently meet
+//! the bar (offset, coulomb, asymmetry, ripple, gravity, delay), 10 null trials, 2
+//! pair trials for `--auto`. Seeds are fixed and consecutive (not picked); each group allows
+//! at most the misses stated in its assertion. Families that do NOT yet meet the bar
+//! (stribeck, backlash, compliance, quantization; the refit-to-noise-floor of Coulomb, gravity and delay) are measured
+//! by the bench binary and listed in docs/workbench.md — they are not asserted here.
+//!
+//! Run in release (about 30–60 s on 2 cores):
+//! `cargo test --release -p jointlab-tests --test workbench_hidden`
+
+use jointlab_tests::hidden::{run, Family, Outcome};
+
+fn trials(families: &[Family], seeds: std::ops::Range<u64>, rho: f64) -> Vec<Outcome> {
+    seeds.filter_map(|s| run(s, families, rho)).collect()
+}
+
+#[test]
+fn single_effects_rank_first_and_refit_to_the_noise_floor() {
+    let fams = [
+        Family::Offset,
+        Family::Coulomb,
+        Family::Asymmetry,
+        Family::Ripple,
+        Family::Gravity,
+        Family::Delay,
+    ];
+    for (i, f) in fams.iter().enumerate() {
+        let base = 50_000 + 100 * i as u64;
+        let out = trials(&[*f], base..base + 3, 2.0);
+        assert!(out.len() >= 2, "{}: too many unstable draws", f.name());
+        for o in &out {
+            println!(
+                "{:<10} ρ = {:.2}  top = {:?}  verdict = {:?}  val/floor = {:.3}",
+                f.name(),
+                o.rho,
+                o.top,
+                o.verdict,
+                o.val_ratio
+            );
+            assert!(
+                o.rho >= 1.0,
+                "{}: generator missed the strength target (ρ = {})",
+                f.name(),
+                o.rho
+            );
+        }
+        let hits = out
+            .iter()
+            .filter(|o| o.rank1_ok() && o.verdict.as_deref() == Some(f.name()))
+            .count();
+        assert!(
+            hits == out.len(),
+            "{}: rank-1 verdict in {hits}/{}",
+            f.name(),
+            out.len()
+        );
+        if matches!(f, Family::Offset | Family::Asymmetry | Family::Ripple) {
+            // Refit-to-noise-floor is asserted only where the bench mostly meets it (offset and
+            // asymmetry 100 %, ripple 81.5 %, one miss allowed): static Coulomb cannot
+            // represent LuGre pre-sliding (38 %), the delay refit reaches 20 % and gravity
+            // 96 %; all measured by the bench (40 per family, real library), docs/workbench.md.
+            let fit_ok = out.iter().filter(|o| o.val_ratio <= 1.1).count();
+            assert!(
+                fit_ok + 1 >= out.len(),
+                "{}: validation RMS ≤ 1.1·floor in {fit_ok}/{}",
+                f.name(),
+                out.len()
+            );
+        }
+    }
+}
+
+#[test]
+fn null_trials_stay_quiet() {
+    let out = trials(&[], 70_000..70_010, 1.0);
+    assert!(out.len() >= 8);
+    let alarms: Vec<_> = out
+        .iter()
+        .filter(|o| !o.null_ok())
+        .map(|o| o.verdict.clone())
+        .collect();
+    println!("null trials: {} run, false alarms {:?}", out.len(), alarms);
+    assert!(alarms.len() <= 1, "false alarms: {alarms:?}");
+}
+
+#[test]
+fn auto_finds_two_hidden_effects() {
+    let mut out = trials(&[Family::Coulomb, Family::Offset], 90_000..90_001, 2.0);
+    out.extend(trials(
+        &[Family::Gravity, Family::Asymmetry],
+        90_001..90_002,
+        2.0,
+    ));
+    assert_eq!(out.len(), 2);
+    for o in &out {
+        println!(
+            "hidden {:?} → --auto added {:?}",
+            o.families.iter().map(|f| f.name()).collect::<Vec<_>>(),
+            o.auto_added
+        );
+        assert!(
+            o.pair_ok(),
+            "hidden {:?}, added {:?}",
+            o.families,
+            o.auto_added
+        );
+    }
+}
