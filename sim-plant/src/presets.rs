@@ -251,6 +251,7 @@ fn build(motor: &MotorRow, d: &Defaults, r: &TransmissionRow) -> Model {
             delay: fixed(0.0),
         },
         effects,
+        fit: Default::default(),
     }
 }
 

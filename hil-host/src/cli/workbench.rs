@@ -364,7 +364,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 "residual_mode": run.last.residual_mode,
                 "steps": run.steps,
                 "final": run.last.to_json(),
-                "model": model,
+                "model": model.to_sim(),
             })
         );
     } else {

@@ -1,48 +1,45 @@
 //! The model the workbench fits: a rigid inertia plus effects from the `sim-plant` library,
-//! each parameter fixed or free, stored as TOML.
+//! each amplitude fixed or free — and its file form, which is the simulator's own model TOML
+//! ([`sim_plant::Model`]): one file format for simulating and fitting, so a fitted model can be
+//! run in the HIL lab unchanged and any sim-plant model (a preset, a hand-written joint) can be
+//! the starting point of a fit.
 //!
-//! ```toml
-//! name = "emps"
-//! [inertia]
-//! name = "inertia"
-//! value = 95.1
-//! free = true
-//! [[effect]]
-//! kind = "viscous"
-//! [[effect.param]]
-//! name = "fv"
-//! value = 203.5
-//! ```
+//! In memory the fitter needs the equation-error view: `input = J·a + Σ θ·fingerprint`, with
+//! `J = N²·I1 + I_middle + I2` the rigid inertia referred to the data's axis and θ the
+//! fingerprint amplitudes (the sign convention of `sim_plant::effects`: every effect is a
+//! resisting torque, so EMPS's `offset = −3.16 N` means the drive needs 3.16 N less than a
+//! symmetric model would). [`Model::from_sim`] and [`Model::to_sim`] translate:
 //!
-//! Sign convention (the equation-error form): `input = inertia·a + Σ θ·fingerprint`, so a
-//! friction parameter is the force it consumes (EMPS: `offset = −3.16 N` means the drive
-//! needs 3.16 N less than a symmetric model would).
+//! * amplitudes whose effect has a parameter with role `Amplitude(i)` are that parameter;
+//! * backlash's amplitude (the inertia beyond the gap) is `plant.output_inertia`; compliance's
+//!   (`−J_far²/K` seen from a motor-side sensor) is derived from `compliance.stiffness` and
+//!   `plant.output_inertia` (if the file has no output inertia, the split `J_far = J/2` is
+//!   assumed and written);
+//! * physical shapes (Stribeck velocity and exponent, ripple period, cogging cycles, backlash
+//!   width, dead-zone input scale, quantiser step) are the effects' parameters; analysis shapes
+//!   (sign smoothing, differentiator smoothing, the delay a column was built for) and the 1σ go
+//!   to the file's `[fit]` section ([`sim_plant::model::FitRecord`]);
+//! * the structural damping `N²·B1 + B2` of `[motor]`/`[plant]` is part of the viscous term.
 //!
-//! Its field names follow the effect library (`EffectKind::name`, `param_names`, `Shape`).
-//! TODO: `sim_plant::Model` (the simulator's model TOML) has landed; the workbench should read
-//! and write that type instead of this one (one model file format for simulator and fitter).
+//! Data of a linear axis (EMPS) are written with `gear_ratio = 1` and read in N, m, kg where
+//! the file's unit comments say N·m, rad, kg·m² — the algebra is the same.
 
-use serde::{Deserialize, Serialize};
 use sim_plant::effects::{EffectKind, Shape};
+use sim_plant::model::{FitEffect, FitRecord};
+use sim_plant::param::Param as SimParam;
 use std::path::Path;
 
 /// One parameter.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Param {
     /// Name (from `EffectKind::param_names`).
     pub name: String,
     /// Value, SI.
     pub value: f64,
     /// Fitted (true) or held fixed (false).
-    #[serde(default = "yes")]
     pub free: bool,
     /// 1σ from the last fit.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<f64>,
-}
-
-fn yes() -> bool {
-    true
 }
 
 impl Param {
@@ -58,53 +55,43 @@ impl Param {
 }
 
 /// One effect in the model.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct EffectEntry {
     /// Which effect.
     pub kind: EffectKind,
     /// Its shape parameters (Stribeck velocity, ripple period, …).
-    #[serde(default)]
     pub shape: Shape,
     /// Amplitudes, one per fingerprint column.
-    #[serde(rename = "param")]
     pub params: Vec<Param>,
 }
 
 /// Rigid inertia + effects.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Model {
     /// Free-text name.
-    #[serde(default)]
     pub name: String,
     /// Inertia (mass for a linear axis).
     pub inertia: Param,
     /// Effects, in the order they were added.
-    #[serde(default, rename = "effect")]
     pub effects: Vec<EffectEntry>,
+    /// The simulator model this one was read from: what the fit does not touch (gear ratio,
+    /// sensors, motor limits, settings) is written back from it.
+    pub template: Option<sim_plant::Model>,
 }
 
 /// Model file problems.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
-    /// I/O.
-    #[error("{0}: {1}")]
-    Io(String, std::io::Error),
-    /// TOML syntax or schema.
-    #[error("{0}: {1}")]
-    Toml(String, String),
-    /// Parameter count does not match the effect.
-    #[error("{file}: effect `{kind}` needs {need} parameters ({names}), found {have}")]
-    Params {
+    /// The file does not read or parse as a sim-plant model (names file, line, column).
+    #[error(transparent)]
+    File(#[from] sim_plant::model::ModelError),
+    /// It parses, but the workbench cannot fit it.
+    #[error("{file}: {message}")]
+    Unsupported {
         /// File.
         file: String,
-        /// Effect.
-        kind: String,
-        /// Needed.
-        need: usize,
-        /// Found.
-        have: usize,
-        /// Names.
-        names: String,
+        /// What is wrong.
+        message: String,
     },
 }
 
@@ -115,6 +102,7 @@ impl Model {
             name: "baseline: rigid inertia + viscous".into(),
             inertia: Param::free("inertia", 0.0),
             effects: vec![EffectEntry::new(EffectKind::Viscous, Shape::default())],
+            template: None,
         }
     }
 
@@ -143,33 +131,229 @@ impl Model {
             .collect()
     }
 
-    /// Load and validate a model TOML.
+    /// Load a sim-plant model file (any: a preset, a hand-written joint, a saved fit).
     pub fn load(path: &Path) -> Result<Self, ModelError> {
-        let f = path.display().to_string();
-        let s = std::fs::read_to_string(path).map_err(|e| ModelError::Io(f.clone(), e))?;
-        let m: Model =
-            toml::from_str(&s).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
-        for e in &m.effects {
-            let names = e.kind.param_names();
-            if e.params.len() != names.len() {
-                return Err(ModelError::Params {
-                    file: f,
-                    kind: e.kind.name().into(),
-                    need: names.len(),
-                    have: e.params.len(),
-                    names: names.join(", "),
-                });
-            }
-        }
-        Ok(m)
+        let sim = sim_plant::Model::load(path)?;
+        Self::from_sim(&sim).map_err(|message| ModelError::Unsupported {
+            file: path.display().to_string(),
+            message,
+        })
     }
 
-    /// Save as TOML.
+    /// Save as a sim-plant model file. The text is parsed back first: a fit that left a
+    /// parameter outside its physical range (a negative Coulomb level, say) is reported, naming
+    /// the parameter, instead of writing a file that would not load.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
-        let f = path.display().to_string();
-        let s =
-            toml::to_string_pretty(self).map_err(|e| ModelError::Toml(f.clone(), e.to_string()))?;
-        std::fs::write(path, s).map_err(|e| ModelError::Io(f, e))
+        let file = path.display().to_string();
+        let text = self.to_sim().to_toml_string();
+        sim_plant::Model::from_toml_str(&text, &file).map_err(|e| ModelError::Unsupported {
+            file: file.clone(),
+            message: format!("not written, the fitted model is not physical: {e}"),
+        })?;
+        std::fs::write(path, text)
+            .map_err(|source| sim_plant::model::ModelError::Io { file, source })?;
+        Ok(())
+    }
+
+    /// The equation-error view of a simulator model.
+    ///
+    /// Fails for a model whose rigid inertia is not positive (nothing to fit against).
+    pub fn from_sim(sim: &sim_plant::Model) -> Result<Self, String> {
+        // A compliant plant (2- or 3-mass) is seen through its rigid limit: the springs are
+        // effects (compliance, backlash) whose fingerprints stand for them; the 3-mass plant's
+        // proximal stage has none and is kept from the template on writing.
+        let n = sim.plant.gear_ratio.value;
+        let j = n * n * sim.motor.inertia.value
+            + sim.plant.middle_inertia.value
+            + sim.plant.output_inertia.value;
+        let j_far = sim.plant.output_inertia.value;
+        if !(j.is_finite() && j > 0.0) {
+            return Err(format!(
+                "the rigid inertia N²·I1 + I_middle + I2 = {j} is not positive"
+            ));
+        }
+        let mut model = Model {
+            name: sim.name.clone(),
+            inertia: Param {
+                name: "inertia".into(),
+                value: j,
+                free: sim.motor.inertia.free,
+                sigma: sim.fit.inertia_sigma,
+            },
+            effects: Vec::new(),
+            template: Some(sim.clone()),
+        };
+        for kind in sim.effects.kinds() {
+            let record = sim.fit.effects.get(kind.name());
+            let mut shape = record.map(|r| r.shape.clone()).unwrap_or_default();
+            let by_name = |name: &str| {
+                sim.effects
+                    .params(kind)
+                    .into_iter()
+                    .find(|(s, _)| s.name == name)
+                    .map(|(_, p)| p.clone())
+            };
+            let value = |name: &str| by_name(name).map(|p| p.value).unwrap_or(0.0);
+            match kind {
+                EffectKind::Stribeck => {
+                    shape.stribeck_velocity = value("velocity");
+                    shape.stribeck_exponent = value("exponent");
+                }
+                EffectKind::Ripple => shape.ripple_period = value("period"),
+                EffectKind::Cogging => {
+                    shape.cogging_period = std::f64::consts::TAU / (value("cycles_per_rev") * n)
+                }
+                EffectKind::Backlash => shape.backlash_width = value("width"),
+                EffectKind::Deadband => shape.input_scale = value("input_scale"),
+                EffectKind::Quantization => shape.quantum = value("step"),
+                _ => {}
+            }
+            let mut entry = EffectEntry::new(kind, shape);
+            for (i, p) in entry.params.iter_mut().enumerate() {
+                let (v, free) = match (kind, by_name(&p.name)) {
+                    (_, Some(q)) => (q.value, q.free),
+                    (EffectKind::Backlash, None) => (j_far, sim.plant.output_inertia.free),
+                    (EffectKind::Compliance, None) => {
+                        let k = value("stiffness");
+                        let far = if j_far > 0.0 { j_far } else { 0.5 * j };
+                        let free = by_name("stiffness").is_some_and(|q| q.free);
+                        (if k > 0.0 { -far * far / k } else { 0.0 }, free)
+                    }
+                    (_, None) => (0.0, true),
+                };
+                p.value = v;
+                p.free = free;
+                p.sigma = record
+                    .and_then(|r| r.sigma.get(i).copied())
+                    .filter(|s| s.is_finite());
+            }
+            model.effects.push(entry);
+        }
+        // Structural damping N²·B1 + B2 acts like viscous friction in the rigid view.
+        let b = n * n * sim.motor.damping.value + sim.plant.output_damping.value;
+        if b != 0.0 {
+            if !model.has(EffectKind::Viscous) {
+                let mut e = EffectEntry::new(EffectKind::Viscous, Shape::default());
+                e.params[0].free = false;
+                model.effects.insert(0, e);
+            }
+            for e in model.effects.iter_mut() {
+                if e.kind == EffectKind::Viscous {
+                    e.params[0].value += b;
+                }
+            }
+        }
+        Ok(model)
+    }
+
+    /// The simulator model of this fit: the template it was read from (or a default rigid
+    /// axis with `gear_ratio = 1`) with the fitted values written in.
+    pub fn to_sim(&self) -> sim_plant::Model {
+        let mut sim = self.template.clone().unwrap_or_else(|| sim_plant::Model {
+            name: self.name.clone(),
+            ..sim_plant::Model::default()
+        });
+        sim.name = self.name.clone();
+        let n = sim.plant.gear_ratio.value;
+        let b = n * n * sim.motor.damping.value + sim.plant.output_damping.value;
+        // Effects removed from the fit are removed from the file.
+        for k in sim.effects.kinds() {
+            if !self.has(k) {
+                sim.effects.remove(k);
+            }
+        }
+        let mut record = FitRecord {
+            source: sim.fit.source.clone(),
+            inertia_sigma: self.inertia.sigma,
+            effects: Default::default(),
+        };
+        let mut j_far: Option<(f64, bool)> = None;
+        for e in &self.effects {
+            sim.effects.insert_default(e.kind);
+            let amp = |name: &str| e.params.iter().find(|p| p.name == name);
+            let sp = |p: &Param| {
+                if p.free {
+                    SimParam::free(p.value)
+                } else {
+                    SimParam::fixed(p.value)
+                }
+            };
+            for (spec, q) in sim.effects.params_mut(e.kind) {
+                if let Some(p) = amp(spec.name) {
+                    let mut v = sp(p);
+                    if e.kind == EffectKind::Viscous {
+                        v.value -= b;
+                    }
+                    *q = v;
+                    continue;
+                }
+                let shape = &e.shape;
+                let set = match (e.kind, spec.name) {
+                    (EffectKind::Stribeck, "velocity") => Some(shape.stribeck_velocity),
+                    (EffectKind::Stribeck, "exponent") => Some(shape.stribeck_exponent),
+                    (EffectKind::Ripple, "period") => Some(shape.ripple_period),
+                    (EffectKind::Cogging, "cycles_per_rev") if shape.cogging_period > 0.0 => {
+                        Some(std::f64::consts::TAU / (shape.cogging_period * n))
+                    }
+                    (EffectKind::Backlash, "width") => Some(shape.backlash_width),
+                    (EffectKind::Deadband, "input_scale") => Some(shape.input_scale),
+                    (EffectKind::Quantization, "step") => Some(shape.quantum),
+                    _ => None,
+                };
+                if let Some(v) = set {
+                    q.value = v;
+                }
+            }
+            match e.kind {
+                EffectKind::Backlash => j_far = Some((e.params[0].value, e.params[0].free)),
+                EffectKind::Compliance if j_far.is_none() => {
+                    let t = &sim.plant.output_inertia;
+                    if t.value > 0.0 {
+                        j_far = Some((t.value, t.free));
+                    } else {
+                        j_far = Some((0.5 * self.inertia.value, false));
+                    }
+                }
+                _ => {}
+            }
+            record.effects.insert(
+                e.kind.name().to_string(),
+                FitEffect {
+                    shape: e.shape.clone(),
+                    sigma: e
+                        .params
+                        .iter()
+                        .map(|p| p.sigma.unwrap_or(f64::NAN))
+                        .collect(),
+                },
+            );
+        }
+        // Compliance: K = J_far²/|α|.
+        if let (Some(e), Some((far, _))) = (
+            self.effects
+                .iter()
+                .find(|e| e.kind == EffectKind::Compliance),
+            j_far,
+        ) {
+            let alpha = e.params[0].value.abs();
+            if let Some(c) = sim.effects.compliance.as_mut() {
+                if alpha > 0.0 && far > 0.0 {
+                    c.stiffness.value = far * far / alpha;
+                }
+                c.stiffness.free = e.params[0].free;
+            }
+        }
+        // Inertia: J = N²·I1 + I_middle + I2.
+        if let Some((far, free)) = j_far {
+            sim.plant.output_inertia.value = far;
+            sim.plant.output_inertia.free = free;
+        }
+        let rest =
+            self.inertia.value - sim.plant.middle_inertia.value - sim.plant.output_inertia.value;
+        sim.motor.inertia.value = if n > 0.0 { rest / (n * n) } else { rest };
+        sim.motor.inertia.free = self.inertia.free;
+        sim.fit = record;
+        sim
     }
 }
 
@@ -185,5 +369,110 @@ impl EffectEntry {
                 .map(|n| Param::free(n, 0.0))
                 .collect(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fitted() -> Model {
+        let mut m = Model::baseline();
+        m.inertia.value = 95.1;
+        m.inertia.sigma = Some(0.2);
+        m.effects[0].params[0].value = 203.5;
+        m.add(EffectKind::Coulomb, Shape::default());
+        m.effects[1].params[0].value = 20.39;
+        m.effects[1].shape.sign_epsilon = 2.5e-4;
+        m.add(EffectKind::Offset, Shape::default());
+        m.effects[2].params[0].value = -3.16;
+        m.effects[2].params[0].sigma = Some(0.21);
+        let shape = Shape {
+            stribeck_velocity: 0.013,
+            stribeck_exponent: 1.0,
+            ..Shape::default()
+        };
+        m.add(EffectKind::Stribeck, shape);
+        m.effects[3].params[0].value = 4.5;
+        m.effects[3].params[0].free = false;
+        m
+    }
+
+    #[test]
+    fn a_fit_round_trips_through_the_simulators_model_file() {
+        let m = fitted();
+        let text = m.to_sim().to_toml_string();
+        let sim = sim_plant::Model::from_toml_str(&text, "fit.toml").unwrap();
+        // The simulator sees the physics as its own parameters …
+        let c = sim.effects.coulomb.as_ref().unwrap();
+        assert_eq!(c.torque.value, 20.39);
+        assert!(c.torque.free);
+        let s = sim.effects.stribeck.as_ref().unwrap();
+        assert_eq!((s.excess.value, s.velocity.value), (4.5, 0.013));
+        assert!(!s.excess.free);
+        assert_eq!(sim.plant.gear_ratio.value, 1.0);
+        assert_eq!(sim.motor.inertia.value, 95.1);
+        // … and the fitter gets back what it wrote, analysis shapes and 1σ included.
+        let back = Model::from_sim(&sim).unwrap();
+        assert_eq!(back.inertia.value, 95.1);
+        assert_eq!(back.inertia.sigma, Some(0.2));
+        assert_eq!(back.effects.len(), 4);
+        for (a, b) in m.effects.iter().zip(&back.effects) {
+            // File order is the library's order; match by kind.
+            let b = back.effects.iter().find(|e| e.kind == a.kind).unwrap_or(b);
+            assert_eq!(a.shape, b.shape, "{}", a.kind.name());
+            assert_eq!(a.params, b.params, "{}", a.kind.name());
+        }
+    }
+
+    #[test]
+    fn a_preset_loads_as_its_rigid_equation_error_view() {
+        let sim = sim_plant::presets::preset("whoi-cable-30").unwrap();
+        let n = sim.plant.gear_ratio.value;
+        let m = Model::from_sim(&sim).unwrap();
+        let j = n * n * sim.motor.inertia.value
+            + sim.plant.middle_inertia.value
+            + sim.plant.output_inertia.value;
+        assert!((m.inertia.value - j).abs() <= 1e-12 * j);
+        for k in sim.effects.kinds() {
+            assert!(m.has(k), "{}", k.name());
+        }
+        if let Some(c) = &sim.effects.coulomb {
+            let e = m
+                .effects
+                .iter()
+                .find(|e| e.kind == EffectKind::Coulomb)
+                .unwrap();
+            assert_eq!(e.params[0].value, c.torque.value);
+        }
+        // Written back, the gear ratio, sensors and settings are kept.
+        let again = m.to_sim();
+        assert_eq!(again.plant.gear_ratio, sim.plant.gear_ratio);
+        assert_eq!(again.sensors, sim.sensors);
+        let rel =
+            (again.motor.inertia.value - sim.motor.inertia.value).abs() / sim.motor.inertia.value;
+        assert!(rel < 1e-9, "motor inertia {rel}");
+    }
+
+    #[test]
+    fn an_unphysical_fit_is_not_written_and_the_error_names_the_parameter() {
+        let mut m = fitted();
+        m.effects[1].params[0].value = -1.0; // negative Coulomb level
+        let dir = std::env::temp_dir().join(format!("wb-model-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bad.toml");
+        let err = m.save(&path).unwrap_err().to_string();
+        assert!(err.contains("torque") && err.contains("bad.toml"), "{err}");
+        assert!(!path.exists());
+    }
+
+    #[test]
+    fn a_bad_model_file_is_reported_with_line_and_column() {
+        let dir = std::env::temp_dir().join(format!("wb-model-l-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.toml");
+        std::fs::write(&path, "name = \"x\"\n[effects.coulomb]\ntorque = \"abc\"\n").unwrap();
+        let err = Model::load(&path).unwrap_err().to_string();
+        assert!(err.contains("m.toml") && err.contains(":3:"), "{err}");
     }
 }

@@ -18,11 +18,16 @@
 //! the 2-mass plant of thesis §3.1; `plant.proximal_stiffness > 0` in addition → the 3-mass
 //! plant of Eqn 3.3.26.
 //!
+//! A fitter's record (1σ of each estimate, the analysis shapes it used) goes to an optional
+//! `[fit]` section ([`FitRecord`]) that the simulator ignores, so a fitted model is one file
+//! that both `hil-host fit` and the HIL lab read.
+//!
 //! Parsing is strict (`deny_unknown_fields` everywhere); every error carries file, line and
 //! column. [`Model::to_toml_string`] writes a file that parses back to an equal model (the
 //! fitter writes refit models with it).
 
 pub mod error;
+pub mod fit_record;
 pub mod sections;
 
 use std::path::Path;
@@ -30,6 +35,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 pub use error::{line_col, Located, ModelError};
+pub use fit_record::{FitEffect, FitRecord};
 
 use crate::effects::{EffectKind, EffectSet};
 use crate::param::{Param, ParamSpec};
@@ -67,6 +73,9 @@ pub struct Model {
     /// The effects present, with their parameters.
     #[serde(default)]
     pub effects: EffectSet,
+    /// What a fitter recorded (1σ, analysis shapes); ignored by the simulator.
+    #[serde(default)]
+    pub fit: FitRecord,
 }
 
 fn unnamed() -> String {
@@ -82,6 +91,7 @@ impl Default for Model {
             plant: Default::default(),
             sensors: Default::default(),
             effects: Default::default(),
+            fit: Default::default(),
         }
     }
 }
@@ -278,6 +288,7 @@ impl Model {
         for k in self.effects.kinds() {
             section(&format!("effects.{}", k.name()), "", self.effects.params(k));
         }
+        s.push_str(&self.fit.to_toml_string());
         s
     }
 }
