@@ -23,7 +23,13 @@ impl Summary {
         let w = self.rows.iter().map(|r| r.0.len()).max().unwrap_or(10);
         let mut s = String::new();
         for (n, v, u) in &self.rows {
-            s.push_str(&format!("  {n:<w$}  {v:>12.5}  {u}\n"));
+            if v.is_nan() {
+                // A figure that does not exist for this run (a step that ends outside its
+                // settling band): say so instead of printing NaN.
+                s.push_str(&format!("  {n:<w$}  {:>12}\n", "not reached"));
+            } else {
+                s.push_str(&format!("  {n:<w$}  {v:>12.5}  {u}\n"));
+            }
         }
         s
     }

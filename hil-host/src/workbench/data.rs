@@ -177,101 +177,38 @@ impl Recording {
 /// time with the file, line and column in the message.
 pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     let file = path.to_path_buf();
-    let text = std::fs::read(path).map_err(|source| DataError::Io {
-        file: file.clone(),
-        source,
-    })?;
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_slice());
-    let header: Vec<String> = rdr
-        .headers()
-        .map_err(|e| DataError::Malformed {
-            file: file.clone(),
-            line: 1,
-            msg: e.to_string(),
-        })?
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let find = |name: &str| -> Result<usize, DataError> {
-        header
-            .iter()
-            .position(|h| h == name)
-            .ok_or_else(|| DataError::MissingColumn {
-                file: file.clone(),
-                column: name.into(),
-                have: header.join(", "),
-            })
-    };
-    let ti = find(&cols.time)?;
-    let ui = find(&cols.input)?;
-    let yi = find(&cols.output)?;
-    let li = match &cols.load_output {
-        Some(c) => Some(find(c)?),
-        None => None,
-    };
+    let mut names = vec![
+        cols.time.as_str(),
+        cols.input.as_str(),
+        cols.output.as_str(),
+    ];
+    if let Some(c) = &cols.load_output {
+        names.push(c);
+    }
+    let (raw, lines) = read_numeric(path, &names)?;
     let (_, ts) = unit_of(&cols.time);
     let (uu, us) = unit_of(&cols.input);
     let (yu, ys) = unit_of(&cols.output);
-    let ls = cols
-        .load_output
-        .as_deref()
-        .map(|c| unit_of(c).1)
-        .unwrap_or(1.0);
-
-    let mut time = Vec::new();
-    let mut input = Vec::new();
-    let mut output = Vec::new();
-    let mut load_out = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            let line = e.position().map(|p| p.line()).unwrap_or(0);
-            DataError::Malformed {
-                file: file.clone(),
-                line,
-                msg: e.to_string(),
-            }
-        })?;
-        let line = rec.position().map(|p| p.line()).unwrap_or(0);
-        let cell = |i: usize, name: &str| -> Result<f64, DataError> {
-            let s = rec.get(i).unwrap_or("");
-            let v: f64 = s.parse().map_err(|_| DataError::NotNumeric {
-                file: file.clone(),
-                line,
-                column: name.into(),
-                cell: s.into(),
-            })?;
-            if !v.is_finite() {
-                return Err(DataError::NotFinite {
-                    file: file.clone(),
-                    line,
-                    column: name.into(),
-                    value: v,
-                });
-            }
-            Ok(v)
-        };
-        let t = cell(ti, &cols.time)? * ts;
-        if let Some(&prev) = time.last() {
-            if t <= prev {
-                return Err(DataError::NonMonotonicTime {
-                    file: file.clone(),
-                    line,
-                    column: cols.time.clone(),
-                    value: t,
-                    prev,
-                });
-            }
-        }
-        time.push(t);
-        input.push(cell(ui, &cols.input)? * us * cols.input_gain);
-        output.push(cell(yi, &cols.output)? * ys);
-        if let (Some(i), Some(name)) = (li, &cols.load_output) {
-            load_out.push(cell(i, name)? * ls);
+    let scale = |k: usize, f: f64| -> Vec<f64> {
+        raw.get(k)
+            .map(|c| c.iter().map(|v| v * f).collect())
+            .unwrap_or_default()
+    };
+    let time = scale(0, ts);
+    for (k, w) in time.windows(2).enumerate() {
+        if w[1] <= w[0] {
+            return Err(DataError::NonMonotonicTime {
+                file,
+                line: lines.get(k + 1).copied().unwrap_or(0),
+                column: cols.time.clone(),
+                value: w[1],
+                prev: w[0],
+            });
         }
     }
+    let input = scale(1, us * cols.input_gain);
+    let output = scale(2, ys);
+    let load_out = cols.load_output.as_deref().map(|c| scale(3, unit_of(c).1));
     if time.len() < 50 {
         return Err(DataError::TooShort {
             file,
@@ -290,7 +227,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         time,
         input,
         output,
-        load_output: li.map(|_| load_out),
+        load_output: load_out,
         dt,
         units: (in_unit, yu.to_string()),
         columns: cols.clone(),
@@ -300,6 +237,13 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
 /// Load named columns as raw numbers (no unit conversion), with the same error checks.
 /// For extra signals a command needs beside input/output (a reference, a pulse train).
 pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
+    read_numeric(path, names).map(|(cols, _)| cols)
+}
+
+/// The named columns as finite numbers, with the CSV line of each row (for later errors).
+/// A missing column, a cell that is not a number, NaN or inf is an error naming the file,
+/// the line and the column.
+fn read_numeric(path: &Path, names: &[&str]) -> Result<(Vec<Vec<f64>>, Vec<u64>), DataError> {
     let file = path.to_path_buf();
     let text = std::fs::read(path).map_err(|source| DataError::Io {
         file: file.clone(),
@@ -333,6 +277,7 @@ pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataEr
         })
         .collect::<Result<_, _>>()?;
     let mut out = vec![Vec::new(); names.len()];
+    let mut lines = Vec::new();
     for rec in rdr.records() {
         let rec = rec.map_err(|e| DataError::Malformed {
             file: file.clone(),
@@ -340,24 +285,25 @@ pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataEr
             msg: e.to_string(),
         })?;
         let line = rec.position().map(|p| p.line()).unwrap_or(0);
-        for (k, &i) in idx.iter().enumerate() {
+        for ((&i, name), col) in idx.iter().zip(names).zip(out.iter_mut()) {
             let s = rec.get(i).unwrap_or("");
             let v: f64 = s.parse().map_err(|_| DataError::NotNumeric {
                 file: file.clone(),
                 line,
-                column: names[k].into(),
+                column: (*name).into(),
                 cell: s.into(),
             })?;
             if !v.is_finite() {
                 return Err(DataError::NotFinite {
                     file: file.clone(),
                     line,
-                    column: names[k].into(),
+                    column: (*name).into(),
                     value: v,
                 });
             }
-            out[k].push(v);
+            col.push(v);
         }
+        lines.push(line);
     }
-    Ok(out)
+    Ok((out, lines))
 }
