@@ -16,7 +16,7 @@
 //! force held constant over the sample.
 
 use super::model::Model;
-use super::residual::effect_force_at;
+use super::residual::{effect_force_at, rk4_step};
 
 /// The cascade controller.
 #[derive(Debug, Clone, Copy)]
@@ -78,17 +78,7 @@ pub fn simulate(
         let h = dt / c.substeps as f64;
         let acc = |x: f64, w: f64, a: f64| (f - effect_force_at(model, dt, x, w, a, f)) / m;
         for _ in 0..c.substeps {
-            let k1v = acc(q, v, a);
-            let k1x = v;
-            let k2v = acc(q + 0.5 * h * k1x, v + 0.5 * h * k1v, k1v);
-            let k2x = v + 0.5 * h * k1v;
-            let k3v = acc(q + 0.5 * h * k2x, v + 0.5 * h * k2v, k2v);
-            let k3x = v + 0.5 * h * k2v;
-            let k4v = acc(q + h * k3x, v + h * k3v, k3v);
-            let k4x = v + h * k3v;
-            q += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-            a = k4v;
+            (q, v, a) = rk4_step(q, v, a, h, acc);
         }
     }
     LoopRun {

@@ -274,6 +274,32 @@ pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -
     f
 }
 
+/// One classical Runge–Kutta step of `ẍ = acc(x, ẋ, ẍ_prev)` over `h`; returns position,
+/// velocity and the last stage's acceleration (fed to the next call: effects such as
+/// compliance read the acceleration). Shared by the output-error simulation and the
+/// closed-loop re-simulation.
+pub fn rk4_step(
+    x: f64,
+    v: f64,
+    a: f64,
+    h: f64,
+    acc: impl Fn(f64, f64, f64) -> f64,
+) -> (f64, f64, f64) {
+    let k1v = acc(x, v, a);
+    let k1x = v;
+    let k2v = acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v, k1v);
+    let k2x = v + 0.5 * h * k1v;
+    let k3v = acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v, k2v);
+    let k3x = v + 0.5 * h * k2v;
+    let k4v = acc(x + h * k3x, v + h * k3v, k3v);
+    let k4x = v + h * k3v;
+    (
+        x + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
+        v + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+        k4v,
+    )
+}
+
 /// Simulate the model from the measured input (output error). Returns simulated position.
 pub fn simulate(model: &Model, time: &[f64], input: &[f64], x0: f64, v0: f64) -> Vec<f64> {
     let m = model.inertia.value;
@@ -291,17 +317,7 @@ pub fn simulate(model: &Model, time: &[f64], input: &[f64], x0: f64, v0: f64) ->
         let u = input[k];
         let acc = |x: f64, v: f64, a: f64| (u - effect_force_at(model, dt, x, v, a, u)) / m;
         for _ in 0..SUB {
-            let k1v = acc(x, v, a);
-            let k1x = v;
-            let k2v = acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v, k1v);
-            let k2x = v + 0.5 * h * k1v;
-            let k3v = acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v, k2v);
-            let k3x = v + 0.5 * h * k2v;
-            let k4v = acc(x + h * k3x, v + h * k3v, k3v);
-            let k4x = v + h * k3v;
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-            a = k4v;
+            (x, v, a) = rk4_step(x, v, a, h, acc);
         }
     }
     xs
