@@ -24,16 +24,22 @@ pub enum ScenarioKind {
     Wall,
     /// High-gain position hold on a backlash preset: limit-cycle amplitude.
     Backlash,
+    /// An identification experiment for the workbench: the free output follows a position
+    /// chirp (0.2 → 2 Hz) under colocated PD — many velocity reversals, a decade of speeds and
+    /// accelerations — so that `hil-host diagnose` on the recording (input `torque_cmd_nm`,
+    /// output `motor_pos_rad`) can name the plant's effects.
+    Identify,
 }
 
 impl ScenarioKind {
     /// Every scenario.
-    pub const ALL: [ScenarioKind; 5] = [
+    pub const ALL: [ScenarioKind; 6] = [
         ScenarioKind::Stiffness,
         ScenarioKind::Damper,
         ScenarioKind::Step,
         ScenarioKind::Wall,
         ScenarioKind::Backlash,
+        ScenarioKind::Identify,
     ];
     /// CLI name.
     pub fn name(self) -> &'static str {
@@ -43,6 +49,7 @@ impl ScenarioKind {
             ScenarioKind::Step => "step",
             ScenarioKind::Wall => "wall",
             ScenarioKind::Backlash => "backlash",
+            ScenarioKind::Identify => "identify",
         }
     }
 }
@@ -219,6 +226,35 @@ impl Scenario {
                 }),
                 tap_torque: 0.0,
             },
+            ScenarioKind::Identify => {
+                // The "medium" stiffness: tight enough to follow the chirp, soft enough that
+                // the torque command carries the plant's friction rather than fighting noise.
+                let k = 1.1 / deg;
+                Scenario {
+                    kind,
+                    scale,
+                    mode: Mode::PositionPdColocated,
+                    gains: GainSet {
+                        stiffness: k,
+                        damping: zeta_damping(k),
+                        ..base
+                    },
+                    target: Target::Position,
+                    trajectory: Trajectory::Chirp {
+                        amplitude: 0.3,
+                        f0: 0.2,
+                        f1: 2.0,
+                        duration: 8.0,
+                    },
+                    rate_hz: 200.0,
+                    duration_s: 8.0,
+                    desired: k,
+                    crank_speed: 0.0,
+                    crank_period: 0.0,
+                    wall: None,
+                    tap_torque: 0.0,
+                }
+            }
             ScenarioKind::Backlash => {
                 // Thesis §2.9: gains tuned against the *engaged* inertia (rotor + reflected
                 // load) are outside the discrete stability region of the rotor alone, which

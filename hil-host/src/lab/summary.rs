@@ -193,10 +193,31 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
                 "deg (output)",
             );
         }
+        ScenarioKind::Identify => {
+            // What makes a recording identifiable: reversals (friction's sign), a range of
+            // speeds (viscous vs Coulomb), travel (position-periodic effects).
+            let v: Vec<f64> = run.iter().map(|r| r.output_vel_rad_s).collect();
+            let reversals = v
+                .windows(2)
+                .filter(|w| w[0].signum() != w[1].signum() && w[0] != 0.0)
+                .count();
+            let vmax = v.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+            let (lo, hi) = run
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
+                    (l.min(r.output_pos_rad), h.max(r.output_pos_rad))
+                });
+            s.push("velocity reversals", reversals as f64, "");
+            s.push("peak output speed", vmax, "rad/s");
+            s.push("output travel", hi - lo, "rad");
+        }
     }
     if matches!(
         sc.kind,
-        ScenarioKind::Stiffness | ScenarioKind::Step | ScenarioKind::Backlash
+        ScenarioKind::Stiffness
+            | ScenarioKind::Step
+            | ScenarioKind::Backlash
+            | ScenarioKind::Identify
     ) {
         s.push(
             "tracking error RMS",

@@ -1,0 +1,94 @@
+//! The three parts agree about one joint: the HIL lab runs the card against a thesis preset
+//! (identification chirp, colocated PD), and the workbench, given only the recording, names
+//! the plant's friction and fits the preset's Coulomb level back out of it.
+//!
+//! The plant is the 3-mass WHOI cable reducer with asymmetric Coulomb friction, stiction and a
+//! quantised encoder; the workbench fits a rigid motor-side axis. So the test also shows that
+//! the default baseline's rigid view holds well below the transmission mode (20–25 Hz).
+
+use clap::Parser;
+use hil_host::cli::{run, Cli};
+use hil_host::workbench::data::{self, Columns};
+use hil_host::workbench::diagnose::{diagnose, Options};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::Prepared;
+use sim_plant::effects::EffectKind;
+
+#[test]
+fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
+    let dir = std::env::temp_dir().join(format!("jointlab-wb-hil-{}", std::process::id()));
+    let preset = "whoi-cable-30";
+    run(Cli::parse_from([
+        "hil-host",
+        "demo",
+        "--scenario",
+        "identify",
+        "--preset",
+        preset,
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]))
+    .unwrap();
+    let rec = dir.join(format!("demo-identify-{preset}.csv"));
+    // The HIL recording loads as it is: motor torque command in, motor encoder out.
+    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
+    let p = Prepared::new(&data::load(&rec, &cols).unwrap(), None);
+    let mut model = Model::baseline();
+    refine::refit_all(&mut model, &p).unwrap();
+    let dg = diagnose(&model, &p, &Options::default());
+    assert_eq!(
+        dg.verdict.add.as_deref(),
+        Some("coulomb"),
+        "{}",
+        dg.to_text()
+    );
+
+    // Truth, referred to the motor: the preset's output-referred Coulomb levels over N.
+    let truth = sim_plant::presets::preset(preset).unwrap();
+    let n = truth.plant.gear_ratio.value;
+    let c = truth.effects.coulomb.as_ref().unwrap().torque.value;
+    let extra = truth
+        .effects
+        .asymmetry
+        .as_ref()
+        .map_or(0.0, |a| a.coulomb_extra.value);
+    // `coulomb` is the negative-direction level, `asymmetry` adds the positive one's excess;
+    // a symmetric fit lands between the two.
+    let (lo, hi) = (c.min(c + extra) / n, c.max(c + extra) / n);
+
+    let fitted = dir.join("fitted.toml");
+    run(Cli::parse_from([
+        "hil-host",
+        "fit",
+        rec.to_str().unwrap(),
+        "--input",
+        "torque_cmd_nm",
+        "--output",
+        "motor_pos_rad",
+        "--add",
+        "coulomb",
+        "--save-model",
+        fitted.to_str().unwrap(),
+    ]))
+    .unwrap();
+    let m = Model::load(&fitted).unwrap();
+    let fc = m
+        .effects
+        .iter()
+        .find(|e| e.kind == EffectKind::Coulomb)
+        .unwrap()
+        .params[0]
+        .value;
+    assert!(
+        fc > 0.95 * lo && fc < 1.05 * hi,
+        "fitted Coulomb {fc} N·m (motor) outside the preset's [{lo}, {hi}]"
+    );
+    // The rigid inertia, motor-referred: I1 + (I_mid + I2)/N², within 10 %.
+    let j = truth.motor.inertia.value
+        + (truth.plant.middle_inertia.value + truth.plant.output_inertia.value) / (n * n);
+    let rel = (m.inertia.value - j).abs() / j;
+    assert!(rel < 0.1, "inertia {} vs {j} ({rel})", m.inertia.value);
+    let _ = std::fs::remove_dir_all(&dir);
+}
