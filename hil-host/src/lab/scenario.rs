@@ -183,13 +183,15 @@ impl Scenario {
                         ..base
                     },
                     target: Target::Position,
+                    // The step comes 0.4 s after the card is enabled, from a joint at rest
+                    // holding 0 (a step at enable would mix arming with the response).
                     trajectory: Trajectory::Step {
                         from: 0.0,
                         to: 0.1,
-                        at: 0.1,
+                        at: 0.4,
                     },
                     rate_hz: 200.0,
-                    duration_s: 1.5,
+                    duration_s: 1.8,
                     desired: k,
                     crank_speed: 0.0,
                     crank_period: 0.0,

@@ -120,36 +120,58 @@ pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64
         }
         ScenarioKind::Step => {
             let target = run.last().map(|r| r.setpoint_pos_rad).unwrap_or(0.0);
-            let after: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + 0.1).collect();
-            let maxpos = after
+            let pos = |r: &Row| r.motor_pos_rad / n;
+            // The step instant: the first sample whose setpoint is nearer the target than the
+            // start; the response starts from where the joint was one sample before.
+            let k_step = rows
                 .iter()
-                .map(|r| r.motor_pos_rad / n)
+                .position(|r| (r.setpoint_pos_rad - target).abs() < 0.5 * target.abs())
+                .unwrap_or(0);
+            let from_step = rows.get(k_step..).unwrap_or_default();
+            let start = rows.get(k_step.saturating_sub(1)).map_or(0.0, pos);
+            let t0 = from_step.first().map_or(0.0, |r| r.time_s);
+            // The value the response ends at (mean of the last 0.2 s): a PD against friction
+            // stops short of the setpoint, so "settled" and "at the setpoint" differ.
+            let tail: Vec<f64> = from_step.iter().rev().take(200).map(pos).collect();
+            let fin = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+            let span = fin - start;
+            let dir = (target - start).signum();
+            let furthest = from_step
+                .iter()
+                .map(|r| (pos(r) - start) * dir)
                 .fold(f64::NEG_INFINITY, f64::max);
-            let over = if target != 0.0 {
-                ((maxpos - target) / target * 100.0).max(0.0)
+            let over = if target != start {
+                ((furthest - (target - start).abs()) / (target - start).abs() * 100.0).max(0.0)
             } else {
                 0.0
             };
-            let band =
-                (0.02 * target.abs()).max(2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n);
-            // Last time the response left the ±2 % band; NaN if it ends outside (friction
-            // can stop a PD short of the band: the thesis's error band ≈ stiction/K).
-            let settle = match after
+            // Rise 10 → 90 % and settling to ±2 % of the final value (MATLAB `stepinfo`'s
+            // convention), and settling into ±2 % of the setpoint (never, if friction holds
+            // the joint outside it: the thesis's error band ≈ stiction / K). The bands are
+            // at least two encoder counts wide.
+            let floor = 2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n;
+            let crossing = |frac: f64| {
+                from_step
+                    .iter()
+                    .find(|r| (pos(r) - start) * span.signum() >= frac * span.abs())
+                    .map_or(f64::NAN, |r| r.time_s)
+            };
+            let rise = crossing(0.9) - crossing(0.1);
+            let settling = |centre: f64, band: f64| match from_step
                 .iter()
-                .rposition(|r| (r.motor_pos_rad / n - target).abs() > band)
+                .rposition(|r| (pos(r) - centre).abs() > band)
             {
                 None => 0.0,
-                Some(i) => after
-                    .get(i + 1)
-                    .map(|r| r.time_s - SETTLE_S - 0.1)
-                    .unwrap_or(f64::NAN),
+                Some(i) => from_step.get(i + 1).map_or(f64::NAN, |r| r.time_s - t0),
             };
-            let last = after.iter().rev().take(200);
-            let ss = last.map(|r| err(r).abs()).fold(0.0, f64::max);
-            s.push("step size", target, "rad (output)");
+            let settle_final = settling(fin, (0.02 * span.abs()).max(floor));
+            let settle_set = settling(target, (0.02 * (target - start).abs()).max(floor));
+            s.push("step size", target - start, "rad (output)");
             s.push("overshoot", over, "%");
-            s.push("settling time (2 %)", settle, "s");
-            s.push("steady-state error", ss, "rad (output)");
+            s.push("rise time (10–90 % of final)", rise, "s");
+            s.push("settling time (2 % of final)", settle_final, "s");
+            s.push("settling time (2 % of setpoint)", settle_set, "s");
+            s.push("steady-state error", target - fin, "rad (output)");
         }
         ScenarioKind::Wall => {
             let late: Vec<&&Row> = run
@@ -270,5 +292,52 @@ mod tests {
             .collect();
         let (b, c) = fit_viscous_coulomb(&w, &t);
         assert!((b - 3.0).abs() < 1e-9 && (c - 0.5).abs() < 1e-9);
+    }
+
+    /// A first-order response y = y∞(1 − e^(−t/τ)) stopping short of the setpoint (as a PD
+    /// against friction does): rise τ·ln 9, settling to 2 % of the final value τ·ln 50, the
+    /// setpoint band never reached, steady-state error = setpoint − y∞.
+    #[test]
+    fn step_figures_follow_stepinfo() {
+        let model = sim_plant::presets::preset("whoi-cable-30").expect("preset");
+        let sc = Scenario::new(ScenarioKind::Step, &model).expect("scenario");
+        let n = sc.scale.gear_ratio;
+        let (tau, y_inf, target, t_step) = (0.05, 0.098, 0.1, 0.6);
+        let rows: Vec<Row> = (1..=2000)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                let after = t >= t_step;
+                let y = if after {
+                    y_inf * (1.0 - (-(t - t_step + 1e-3) / tau).exp())
+                } else {
+                    0.0
+                };
+                Row {
+                    time_s: t,
+                    seq: 0,
+                    setpoint_pos_rad: if after { target } else { 0.0 },
+                    setpoint_torque_nm: 0.0,
+                    motor_pos_rad: y * n,
+                    output_pos_rad: y,
+                    motor_vel_est_rad_s: 0.0,
+                    motor_vel_rad_s: 0.0,
+                    output_vel_rad_s: 0.0,
+                    torque_cmd_nm: 0.0,
+                    torque_sensor_nm: 0.0,
+                    output_torque_true_nm: 0.0,
+                    state: controller::proto::State::Enabled,
+                    flags: 0,
+                    fault: false,
+                }
+            })
+            .collect();
+        let s = summarize(&sc, &rows, 0.0, 0.0);
+        let get = |k: &str| s.get(k).expect(k);
+        assert!((get("rise time (10–90 % of final)") - tau * 9f64.ln()).abs() < 1.5e-3);
+        assert!((get("settling time (2 % of final)") - tau * 50f64.ln()).abs() < 1.5e-3);
+        assert!(get("settling time (2 % of setpoint)").is_nan());
+        assert!((get("steady-state error") - (target - y_inf)).abs() < 1e-6);
+        assert!((get("step size") - target).abs() < 1e-12);
+        assert_eq!(get("overshoot"), 0.0);
     }
 }
