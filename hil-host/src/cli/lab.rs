@@ -192,6 +192,13 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         }
         pb.finish_and_clear();
         lab.recorder.flush()?;
+        // Every file is complete before anything is printed (stdout may be a closed pipe).
+        plot_run(
+            &png,
+            &format!("{} — {}", kind.name(), a.plant.label()),
+            &lab.recorder.rows,
+            lab.scenario.scale.gear_ratio,
+        )?;
         println!(
             "\n{} on {} — card + plant + supervisor on the in-process bus, lockstep, seed {}",
             kind.name(),
@@ -204,12 +211,6 @@ pub fn demo(a: DemoArgs) -> Result<()> {
                 println!("  supervisor: {e:?}");
             }
         }
-        plot_run(
-            &png,
-            &format!("{} — {}", kind.name(), a.plant.label()),
-            &lab.recorder.rows,
-            lab.scenario.scale.gear_ratio,
-        )?;
         println!(
             "  wrote {}, {}, {}",
             csv.display(),

@@ -54,6 +54,7 @@ pub enum Command {
 
 /// Parse the command line and run; the process exit code.
 pub fn main() -> std::process::ExitCode {
+    quiet_on_closed_stdout();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -78,4 +79,25 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(a) => workbench::diagnose(a),
         Command::Fit(a) => workbench::fit(a),
     }
+}
+
+/// `hil-host diagnose … | head` closes stdout early; Rust ignores SIGPIPE, so the next
+/// `println!` panics with "failed printing to stdout: Broken pipe". Like a C tool killed by
+/// SIGPIPE, end quietly then (the demo writes its files before it prints; the workbench
+/// writes a model only when asked, before its report); every other panic keeps the default
+/// report.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if msg.contains("failed printing to stdout") && msg.contains("Broken pipe") {
+            std::process::exit(141); // 128 + SIGPIPE, what a shell reports for `head`
+        }
+        default(info);
+    }));
 }
