@@ -45,7 +45,7 @@ pub use sensors::{SensorConfig, Sensors};
 pub use state::TrueState;
 
 use crate::effects::{compliance, EffectLaws, Node, PeriodicTorque};
-use crate::fastmath::{self, Harmonic};
+use crate::fastmath::{self, Harmonic, Phase};
 use crate::model::{Model, PlantKind};
 
 /// Options that are not part of the joint model: integration, noise seed, set-up.
@@ -489,12 +489,14 @@ impl Plant {
         let mut v = self.v;
         let mut stuck = self.stuck;
 
-        // Resisting torques on the motor node: cogging at output-referred position `xm` (the
-        // harmonic is scaled to the motor angle N·xm) and additive torques.
-        let motor_load = |xm: f64, vm: f64, load: f64| -> f64 {
-            let mut r = 0.0;
-            if let Some(c) = cogging {
-                r += c.eval(xm);
+        // Resisting torques on the motor node: cogging (its value at the current phase) and
+        // additive torques at output-referred position `xm`.
+        // The sums start at −0.0, the identity of IEEE addition (0.0 is not: 0.0 + −0.0 = 0.0),
+        // so the compiler drops the start instead of adding it on the dependency chain.
+        let motor_load = |cog: f64, xm: f64, vm: f64, load: f64| -> f64 {
+            let mut r = -0.0;
+            if cogging.is_some() {
+                r += cog;
             }
             if has_additive {
                 r += laws.additive_on(Node::Motor, xm, vm, load);
@@ -502,17 +504,18 @@ impl Plant {
             r
         };
         // Resisting torques at the output that are not friction or spring: additive torques,
-        // ripple, gravity (the rigid plant's output is its only node).
-        let output_load = |q: f64, vq: f64, load: f64| -> f64 {
-            let mut r = 0.0;
+        // ripple, gravity (values at their current phases; the rigid plant's output is its
+        // only node).
+        let output_load = |rip: f64, grav: f64, q: f64, vq: f64, load: f64| -> f64 {
+            let mut r = -0.0;
             if has_additive {
                 r += laws.additive_on(Node::Output, q, vq, load);
             }
-            if let Some(p) = ripple {
-                r += p.eval(q) * (1.0 + ripple_gain * load.abs());
+            if ripple.is_some() {
+                r += rip * (1.0 + ripple_gain * load.abs());
             }
-            if let Some(g) = gravity {
-                r += g.eval(q);
+            if gravity.is_some() {
+                r += grav;
             }
             r
         };
@@ -535,7 +538,9 @@ impl Plant {
                 TORQUE => env_t,
                 _ => env.torque(q, v_old),
             };
-            let (vn, f) = friction::advance(v_old, stuck, drive + e, load, h_over_i, &fl, dry);
+            // (Free: no `+ 0.0` on the dependency chain.)
+            let drive = if ENV == FREE { drive } else { drive + e };
+            let (vn, f) = friction::advance(v_old, stuck, drive, load, h_over_i, &fl, dry);
             (vn, f, e, (vn - v_old) * inv_h)
         };
 
@@ -551,6 +556,12 @@ impl Plant {
         for i in 0..3 {
             x[i] += 0.5 * h * v[i];
         }
+        // Phases of the periodic torques: reduced exactly here, then advanced by each drift's
+        // increment (see `Harmonic::predict`), re-anchored every step so nothing accumulates
+        // beyond one step. `*_inc` is the last increment (table steps), the next one's guess.
+        let mut cog = PhaseTrack::start(cogging, x[0], v[0], h);
+        let mut rip = PhaseTrack::start(ripple, x[node], v[node], h);
+        let mut grav = PhaseTrack::start(gravity, x[node], v[node], h);
         // The actuator chain is memoryless without a delay: shape once per step.
         let shaped = laws.actuator.shape(u_cmd);
         let mut out = Substep::default();
@@ -571,7 +582,8 @@ impl Plant {
                 RIGID => {
                     let [q, _, _] = x;
                     let vq = v[0];
-                    let load = output_load(q, vq, u) + motor_load(q, vq, u);
+                    let load = output_load(rip.value(ripple), grav.value(gravity), q, vq, u)
+                        + motor_load(cog.value(cogging), q, vq, u);
                     let (vn, f, e, a) = friction_node(q, before, u - m.b1 * vq, load, &mut stuck);
                     v = [vn; 3];
                     Substep {
@@ -587,10 +599,10 @@ impl Plant {
                     let [x0, _, x2] = x;
                     let [v0, _, v2] = v;
                     let tt = spring.torque(x0 - x2, v0 - v2);
-                    let net0 = u - tt - m.b1 * v0 - motor_load(x0, v0, tt);
+                    let net0 = u - tt - m.b1 * v0 - motor_load(cog.value(cogging), x0, v0, tt);
                     let a0 = net0 * m.inv_i1;
                     let v0n = v0 + net0 * h_over_i1;
-                    let load = output_load(x2, v2, tt);
+                    let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0n, v0n, vn];
                     Substep {
@@ -607,10 +619,10 @@ impl Plant {
                     let [v0, v1, v2] = v;
                     let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                     let tt = spring.torque(x1 - x2, v1 - v2);
-                    let net0 = u - ts - m.b1 * v0 - motor_load(x0, v0, ts);
+                    let net0 = u - ts - m.b1 * v0 - motor_load(cog.value(cogging), x0, v0, ts);
                     let a0 = net0 * m.inv_i1;
                     let net1 = ts - tt;
-                    let load = output_load(x2, v2, tt);
+                    let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0 + net0 * h_over_i1, v1 + net1 * h_over_im, vn];
                     Substep {
@@ -631,6 +643,11 @@ impl Plant {
             let d = if k + 1 == count { 0.5 * h } else { h };
             for i in 0..3 {
                 x[i] += d * v[i];
+            }
+            if k + 1 < count {
+                cog.advance(cogging, v[0]);
+                rip.advance(ripple, v[node]);
+                grav.advance(gravity, v[node]);
             }
         }
         self.x = x;
@@ -713,6 +730,57 @@ impl Periodics {
             ripple: make(&laws.ripple, laws.ripple.wavenumber),
             ripple_load_gain: laws.ripple.load_gain,
             gravity: make(&laws.gravity, laws.gravity.wavenumber),
+        }
+    }
+}
+
+/// A periodic torque's [`Phase`] carried through the substeps of one step.
+#[derive(Clone, Copy, Debug, Default)]
+struct PhaseTrack {
+    /// Where the torque is evaluated this substep.
+    now: Phase,
+    /// `now` re-centred for the next substep (computed while this one's forces are evaluated,
+    /// off the dependency chain through the velocity).
+    anchor: Phase,
+    /// Table steps per unit velocity over one substep: h·k·N/2π.
+    per_velocity: f64,
+}
+
+impl PhaseTrack {
+    /// Exact phase at `q`; the velocity `v` of the drift that led here guesses the next
+    /// increment. Inert for an absent harmonic.
+    #[inline(always)]
+    fn start(harmonic: Option<&Harmonic>, q: f64, v: f64, h: f64) -> Self {
+        match harmonic {
+            Some(hm) => {
+                let per_velocity = h * hm.steps_per_unit();
+                let now = hm.phase(q);
+                Self {
+                    now,
+                    anchor: Harmonic::predict(now, per_velocity * v),
+                    per_velocity,
+                }
+            }
+            None => Self::default(),
+        }
+    }
+
+    /// The torque at the current phase (0 for an absent harmonic).
+    #[inline(always)]
+    fn value(&self, harmonic: Option<&Harmonic>) -> f64 {
+        match harmonic {
+            Some(hm) => hm.at(self.now),
+            None => 0.0,
+        }
+    }
+
+    /// Move on by a full drift with velocity `v`.
+    #[inline(always)]
+    fn advance(&mut self, harmonic: Option<&Harmonic>, v: f64) {
+        if harmonic.is_some() {
+            let inc = self.per_velocity * v;
+            self.now = Harmonic::advance(self.anchor, inc);
+            self.anchor = Harmonic::predict(self.now, inc);
         }
     }
 }
