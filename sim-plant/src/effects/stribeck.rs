@@ -40,10 +40,18 @@ pub fn decay(v: f64, vs: f64, delta: f64) -> f64 {
     decay_inv(v, 1.0 / vs, delta)
 }
 
-/// [`decay`] with 1/vs precomputed (the integrator's form: no division on the dependency
-/// chain of the friction node).
+/// [`decay`] with 1/vs precomputed.
 #[inline(always)]
 pub fn decay_inv(v: f64, inv_vs: f64, delta: f64) -> f64 {
+    excess_decay(v, inv_vs, delta, 1.0)
+}
+
+/// `excess·exp(−(v/vs)^δ)` for `v ≥ 0` with 1/vs precomputed: the integrator's form, with no
+/// division on the friction node's dependency chain and the excess folded into the exp
+/// ([`crate::fastmath::exp_neg_scaled`], inline and table-based: at low speed this is on the
+/// chain every substep).
+#[inline(always)]
+pub fn excess_decay(v: f64, inv_vs: f64, delta: f64, excess: f64) -> f64 {
     let x = v * inv_vs;
     let e = if delta == 2.0 {
         x * x
@@ -56,7 +64,7 @@ pub fn decay_inv(v: f64, inv_vs: f64, delta: f64) -> f64 {
     if e > 36.0 {
         0.0
     } else {
-        (-e).exp()
+        crate::fastmath::exp_neg_scaled(e, excess)
     }
 }
 

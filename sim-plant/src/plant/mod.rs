@@ -146,6 +146,8 @@ pub struct Plant {
     last: TrueState,
     /// The periodic torques of `laws`, precomputed for the substep loop.
     periodic: Periodics,
+    /// The transmission spring of `laws` in the substep loop's form.
+    spring: PiecewiseSpring,
 }
 
 impl Plant {
@@ -216,6 +218,7 @@ impl Plant {
             delay: model.sensors.delay.value.round() as usize,
         };
         let periodic = Periodics::new(&laws, n);
+        let spring = PiecewiseSpring::new(&laws.spring);
         let plant = Plant {
             model: model.clone(),
             mech,
@@ -231,6 +234,7 @@ impl Plant {
             sensors: sensors::SensorModel::new(cfg, opts.seed),
             last: TrueState::default(),
             periodic,
+            spring,
         };
         plant.check_step_size(&opts.environment)?;
         Ok(plant)
@@ -454,7 +458,7 @@ impl Plant {
         let m = self.mech;
         let laws = &self.laws;
         let fl = laws.friction;
-        let spring = laws.spring;
+        let spring = self.spring;
         let has_additive = !laws.additive.is_empty();
         let dry = self.dry;
         let env = self.env;
@@ -599,7 +603,8 @@ impl Plant {
                     let [x0, _, x2] = x;
                     let [v0, _, v2] = v;
                     let tt = spring.torque(x0 - x2, v0 - v2);
-                    let net0 = u - tt - m.b1 * v0 - motor_load(cog.value(cogging), x0, v0, tt);
+                    // The spring torque arrives last (it depends on both positions): subtract it last.
+                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value(cogging), x0, v0, tt)) - tt;
                     let a0 = net0 * m.inv_i1;
                     let v0n = v0 + net0 * h_over_i1;
                     let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
@@ -619,7 +624,7 @@ impl Plant {
                     let [v0, v1, v2] = v;
                     let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                     let tt = spring.torque(x1 - x2, v1 - v2);
-                    let net0 = u - ts - m.b1 * v0 - motor_load(cog.value(cogging), x0, v0, ts);
+                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value(cogging), x0, v0, ts)) - ts;
                     let a0 = net0 * m.inv_i1;
                     let net1 = ts - tt;
                     let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
@@ -731,6 +736,61 @@ impl Periodics {
             ripple_load_gain: laws.ripple.load_gain,
             gravity: make(&laws.gravity, laws.gravity.wavenumber),
         }
+    }
+}
+
+/// The transmission spring ([`crate::effects::SpringLaw`]: backlash gap, soft zone, stiff
+/// branch, damping while engaged) as a function of the raw deflection: on each branch the
+/// torque is `k·δ + c` with the gap and the knee folded into `c`, so the substep computes one
+/// multiply-add after the branch instead of subtracting the gap, then the knee, then
+/// multiplying and adding the knee torque (three fewer operations on the dependency chain;
+/// the branches are predictable). The same curve up to rounding.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct PiecewiseSpring {
+    /// Half the backlash gap: no torque for |δ| ≤ gap.
+    gap: f64,
+    /// Deflection where the stiff branch starts: gap + knee deflection.
+    knee: f64,
+    k_soft: f64,
+    /// Soft branch offset, −k_soft·gap (for δ > 0; negated for δ < 0).
+    c_soft: f64,
+    k_hard: f64,
+    /// Stiff branch offset, knee torque − k_hard·(gap + knee deflection).
+    c_hard: f64,
+    damping: f64,
+}
+
+impl PiecewiseSpring {
+    fn new(s: &crate::effects::SpringLaw) -> Self {
+        let gap = 0.5 * s.backlash;
+        let knee = gap + s.knee_deflection;
+        Self {
+            gap,
+            knee,
+            k_soft: s.k_soft,
+            c_soft: -s.k_soft * gap,
+            k_hard: s.k_hard,
+            c_hard: s.knee_torque - s.k_hard * knee,
+            damping: s.damping,
+        }
+    }
+
+    /// Transmitted torque at deflection `d` and deflection rate `dd` (as
+    /// [`crate::effects::SpringLaw::torque`]).
+    #[inline(always)]
+    fn torque(&self, d: f64, dd: f64) -> f64 {
+        let elastic = if d > self.knee {
+            self.k_hard * d + self.c_hard
+        } else if d < -self.knee {
+            self.k_hard * d - self.c_hard
+        } else if d > self.gap {
+            self.k_soft * d + self.c_soft
+        } else if d < -self.gap {
+            self.k_soft * d - self.c_soft
+        } else {
+            return 0.0;
+        };
+        elastic + self.damping * dd
     }
 }
 
