@@ -124,9 +124,10 @@ pub struct Harmonic {
     /// k·N/2π: table steps per unit of q.
     steps_per_unit: f64,
     /// Per table point j (angle φj), with p = a·sin φj + b·cos φj and d = a·cos φj − b·sin φj
-    /// (the value and its derivative by the angle): the coefficients of
+    /// (the value and its derivative by the angle): the coefficients c0..c7 of
     /// p·cos(f·STEP) + d·sin(f·STEP) in powers of f, [p, d·S1, p·C2, d·S3, p·C4, d·S5, p·C6,
-    /// d·S7] — one 64-byte line per point.
+    /// d·S7], stored interleaved as [c0, c4, c1, c5, c2, c6, c3, c7] — one 64-byte line per
+    /// point.
     table: Box<[[f64; 8]; N]>,
 }
 
@@ -154,7 +155,8 @@ impl Harmonic {
         for (out, [s, c]) in table.iter_mut().zip(TABLE.iter()) {
             let p = a * s + b * c;
             let d = a * c - b * s;
-            *out = [p, d * S1, p * C2, d * S3, p * C4, d * S5, p * C6, d * S7];
+            // Interleaved low/high halves: lanes (c0, c4), (c1, c5), (c2, c6), (c3, c7).
+            *out = [p, p * C4, d * S1, d * S5, p * C2, p * C6, d * S3, d * S7];
         }
         Self {
             steps_per_unit: k * PER_RAD,
@@ -181,9 +183,12 @@ impl Harmonic {
         let f = p.f;
         let f2 = f * f;
         let f4 = f2 * f2;
-        let lo = (c[0] + c[1] * f) + f2 * (c[2] + c[3] * f);
-        let hi = (c[4] + c[5] * f) + f2 * (c[6] + c[7] * f);
-        lo + f4 * hi
+        // The low (c0..c3) and high (c4..c7) halves side by side, as two-lane operations the
+        // compiler keeps in one SSE2 register each.
+        let a = [c[0] + c[2] * f, c[1] + c[3] * f];
+        let b = [c[4] + c[6] * f, c[5] + c[7] * f];
+        let lohi = [a[0] + f2 * b[0], a[1] + f2 * b[1]];
+        lohi[0] + f4 * lohi[1]
     }
 
     /// The value at `q`.
