@@ -557,9 +557,7 @@ impl Plant {
                 v = [vp; 3];
             }
         }
-        for i in 0..3 {
-            x[i] += 0.5 * h * v[i];
-        }
+        drift::<KIND>(&mut x, &v, 0.5 * h);
         // Phases of the periodic torques: reduced exactly here, then advanced by each drift's
         // increment (see `Harmonic::predict`), re-anchored every step so nothing accumulates
         // beyond one step. `*_inc` is the last increment (table steps), the next one's guess.
@@ -586,8 +584,8 @@ impl Plant {
                 RIGID => {
                     let [q, _, _] = x;
                     let vq = v[0];
-                    let load = output_load(rip.value(ripple), grav.value(gravity), q, vq, u)
-                        + motor_load(cog.value(cogging), q, vq, u);
+                    let load = output_load(rip.value, grav.value, q, vq, u)
+                        + motor_load(cog.value, q, vq, u);
                     let (vn, f, e, a) = friction_node(q, before, u - m.b1 * vq, load, &mut stuck);
                     v = [vn; 3];
                     Substep {
@@ -604,10 +602,10 @@ impl Plant {
                     let [v0, _, v2] = v;
                     let tt = spring.torque(x0 - x2, v0 - v2);
                     // The spring torque arrives last (it depends on both positions): subtract it last.
-                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value(cogging), x0, v0, tt)) - tt;
+                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value, x0, v0, tt)) - tt;
                     let a0 = net0 * m.inv_i1;
                     let v0n = v0 + net0 * h_over_i1;
-                    let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
+                    let load = output_load(rip.value, grav.value, x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0n, v0n, vn];
                     Substep {
@@ -624,10 +622,10 @@ impl Plant {
                     let [v0, v1, v2] = v;
                     let ts = m.ks * (x0 - x1) + m.cs * (v0 - v1);
                     let tt = spring.torque(x1 - x2, v1 - v2);
-                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value(cogging), x0, v0, ts)) - ts;
+                    let net0 = ((u - m.b1 * v0) - motor_load(cog.value, x0, v0, ts)) - ts;
                     let a0 = net0 * m.inv_i1;
                     let net1 = ts - tt;
-                    let load = output_load(rip.value(ripple), grav.value(gravity), x2, v2, tt);
+                    let load = output_load(rip.value, grav.value, x2, v2, tt);
                     let (vn, f, e, a) = friction_node(x2, before, tt - m.b2 * v2, load, &mut stuck);
                     v = [v0 + net0 * h_over_i1, v1 + net1 * h_over_im, vn];
                     Substep {
@@ -646,16 +644,19 @@ impl Plant {
             }
             before = v[node];
             let d = if k + 1 == count { 0.5 * h } else { h };
-            for i in 0..3 {
-                x[i] += d * v[i];
-            }
+            drift::<KIND>(&mut x, &v, d);
             if k + 1 < count {
                 cog.advance(cogging, v[0]);
                 rip.advance(ripple, v[node]);
                 grav.advance(gravity, v[node]);
             }
         }
-        self.x = x;
+        // The nodes `drift` skipped move with the motor node (rigid: all three).
+        self.x = match KIND {
+            RIGID => [x[0]; 3],
+            TWO_MASS => [x[0], x[0], x[2]],
+            _ => x,
+        };
         self.v = v;
         self.stuck = stuck;
         self.delay_pos = delay_pos;
@@ -697,6 +698,26 @@ impl Plant {
             applied_torque: applied,
             stuck: self.stuck && self.dry,
             saturated,
+        }
+    }
+}
+
+/// Positions advance by `d`·velocity. Only the nodes that exist move: in a rigid plant all
+/// three positions are the one node's, in a 2-mass plant the middle node is the motor node
+/// (same start, same velocity, hence bit-identical updates) — skipping them keeps the substep
+/// loop's state in fewer registers.
+#[inline(always)]
+fn drift<const KIND: u8>(x: &mut [f64; 3], v: &[f64; 3], d: f64) {
+    match KIND {
+        RIGID => x[0] += d * v[0],
+        TWO_MASS => {
+            x[0] += d * v[0];
+            x[2] += d * v[2];
+        }
+        _ => {
+            for i in 0..3 {
+                x[i] += d * v[i];
+            }
         }
     }
 }
@@ -794,13 +815,15 @@ impl PiecewiseSpring {
     }
 }
 
-/// A periodic torque's [`Phase`] carried through the substeps of one step.
+/// A periodic torque's [`Phase`] carried through the substeps of one step. Only the torque
+/// and the next anchor are kept between substeps (the phase itself is dead once both are
+/// computed), which keeps the loop's state in registers.
 #[derive(Clone, Copy, Debug, Default)]
 struct PhaseTrack {
-    /// Where the torque is evaluated this substep.
-    now: Phase,
-    /// `now` re-centred for the next substep (computed while this one's forces are evaluated,
-    /// off the dependency chain through the velocity).
+    /// The torque where this substep evaluates it (0 for an absent harmonic).
+    value: f64,
+    /// The phase re-centred for the next substep (computed from this one's phase, off the
+    /// dependency chain through the velocity).
     anchor: Phase,
     /// Table steps per unit velocity over one substep: h·k·N/2π.
     per_velocity: f64,
@@ -816,7 +839,7 @@ impl PhaseTrack {
                 let per_velocity = h * hm.steps_per_unit();
                 let now = hm.phase(q);
                 Self {
-                    now,
+                    value: hm.at(now),
                     anchor: Harmonic::predict(now, per_velocity * v),
                     per_velocity,
                 }
@@ -825,22 +848,14 @@ impl PhaseTrack {
         }
     }
 
-    /// The torque at the current phase (0 for an absent harmonic).
-    #[inline(always)]
-    fn value(&self, harmonic: Option<&Harmonic>) -> f64 {
-        match harmonic {
-            Some(hm) => hm.at(self.now),
-            None => 0.0,
-        }
-    }
-
-    /// Move on by a full drift with velocity `v`.
+    /// Move on by a full drift with velocity `v` and evaluate the torque there.
     #[inline(always)]
     fn advance(&mut self, harmonic: Option<&Harmonic>, v: f64) {
-        if harmonic.is_some() {
+        if let Some(hm) = harmonic {
             let inc = self.per_velocity * v;
-            self.now = Harmonic::advance(self.anchor, inc);
-            self.anchor = Harmonic::predict(self.now, inc);
+            let now = Harmonic::advance(self.anchor, inc);
+            self.value = hm.at(now);
+            self.anchor = Harmonic::predict(now, inc);
         }
     }
 }
