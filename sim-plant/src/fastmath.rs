@@ -229,9 +229,9 @@ impl Harmonic {
 }
 
 /// Table points per octave of [`exp_neg`].
-const EN: usize = 64;
+const EN: usize = 256;
 
-/// 2^(j/64) for j in 0..64 by the Taylor series of e^(j·ln2/64) (compile time only; positive
+/// 2^(j/256) for j in 0..256 by the Taylor series of e^(j·ln2/256) (compile time only; positive
 /// terms summed smallest first, so the sum is within about an ulp).
 const fn build_exp2_table() -> [f64; EN] {
     let mut t = [0.0; EN];
@@ -258,34 +258,40 @@ const fn build_exp2_table() -> [f64; EN] {
     t
 }
 
-/// 2^(j/64).
+/// 2^(j/256).
 static EXP2_TABLE: [f64; EN] = build_exp2_table();
-/// 64/ln 2.
-const EXP_PER_LN2: f64 = EN as f64 / std::f64::consts::LN_2;
-/// ln2/64.
+/// 256/ln 2: [`exp_neg_scaled_t`]'s argument per unit of −x.
+pub const EXP_PER_LN2: f64 = EN as f64 / std::f64::consts::LN_2;
+/// ln2/256.
 const EXP_LN2_PER: f64 = std::f64::consts::LN_2 / EN as f64;
 
-/// `scale·e^−x` for 0 ≤ x ≤ 700 (the Stribeck decay times the stiction excess). At low
-/// speed this is on the friction node's dependency chain every substep, where a libm `exp`
-/// is a call with its own range checks; here it is inline and identical on every platform:
-/// x·64/ln2 = k + φ (k integer), e^−x = 2^(k>>6)·2^((k&63)/64)·e^(φ·ln2/64), a table of
-/// 2^(j/64) with `scale` folded in (off the chain), a degree-5 Estrin polynomial of the
-/// remainder |r| ≤ ln2/128 (truncation r⁶/720 < 4e-17) and an exponent add. The remainder
-/// is taken as (t − k)·ln2/64 from the rounded t = −x·64/ln2 rather than by a two-part
-/// Cody–Waite reduction (two operations shorter): the absolute error that costs, |x|·2⁻⁵³
-/// relative to a value e^−x, stays below 1e-16·scale for every x.
+/// `scale·e^−x` for 0 ≤ x ≤ 700 (the Stribeck decay times the stiction excess).
 #[inline(always)]
 pub fn exp_neg_scaled(x: f64, scale: f64) -> f64 {
-    let t = x * -EXP_PER_LN2;
+    exp_neg_scaled_t(x * -EXP_PER_LN2, scale)
+}
+
+/// `scale·e^−x` given t = −x·256/ln2 (−180 000 ≤ t ≤ 0), so that a caller can fold the
+/// 256/ln2 into its own constants (the Stribeck decay computes t = v²·(−256/(ln2·vs²)), one
+/// multiply less on the friction node's dependency chain). At low speed this is on that
+/// chain every substep, where a libm `exp` is a call with its own range checks; here it is
+/// inline and identical on every platform: t = k + φ (k integer), e^−x = 2^(k>>8)·
+/// 2^((k&255)/256)·e^(φ·ln2/256), a table of 2^(j/256) with `scale` folded in (off the
+/// chain), a degree-4 Estrin polynomial of the remainder |r| ≤ ln2/512 (truncation
+/// r⁵/120 < 4e-17) and an exponent add. The remainder is taken as (t − k)·ln2/256 from the
+/// rounded t rather than by a two-part Cody–Waite reduction (two operations shorter): the
+/// absolute error that costs, |x|·2⁻⁵³ relative to a value e^−x, stays below 1e-16·scale.
+#[inline(always)]
+pub fn exp_neg_scaled_t(t: f64, scale: f64) -> f64 {
     let shifted = t + MAGIC;
     let k = shifted - MAGIC; // round(t)
     let ki = shifted.to_bits() as i64; // its low bits, two's complement
     let r = (t - k) * EXP_LN2_PER;
     let r2 = r * r;
-    let p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0 + r * (1.0 / 120.0)));
-    // 2^(k/64) = 2^(k >> 6) · table[k & 63]: add k >> 6 to the table entry's exponent.
+    let p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0));
+    // 2^(k/256) = 2^(k >> 8) · table[k & 255]: add k >> 8 to the table entry's exponent.
     let j = (ki as usize) & (EN - 1);
-    let e = ((ki << 45) >> 51) as u64; // sign-extended bits 6..19 of the low 19 bits: k >> 6
+    let e = ((ki << 44) >> 52) as u64; // sign-extended bits 8..19 of the low 20 bits: k >> 8
     (scale * f64::from_bits(EXP2_TABLE[j].to_bits().wrapping_add(e << 52))) * p
 }
 
