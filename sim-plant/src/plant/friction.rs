@@ -35,13 +35,17 @@ pub fn advance(
     }
     if *stuck {
         let tau = drive - load;
-        let dir = if tau >= 0.0 { 1.0 } else { -1.0 };
-        let level = law.breakaway(dir);
+        // The level for τ's direction as a select of two sums rather than a branch: a held
+        // node's τ hovers around zero and flips sign unpredictably.
+        let pos = law.coulomb_pos + law.excess_pos;
+        let neg = law.coulomb_neg + law.excess_neg;
+        let level = if tau >= 0.0 { pos } else { neg };
         if tau.abs() <= level {
             return (0.0, tau);
         }
         *stuck = false;
-        let f = dir * level;
+        // Breaking away means |τ| > level ≥ 0, so τ ≠ 0 and its sign is the direction.
+        let f = level.copysign(tau);
         return (h_over_i * (tau - f), f);
     }
     let f = law.sliding(v);
