@@ -283,6 +283,14 @@ pub fn exp_neg_scaled(x: f64, scale: f64) -> f64 {
 /// absolute error that costs, |x|·2⁻⁵³ relative to a value e^−x, stays below 1e-16·scale.
 #[inline(always)]
 pub fn exp_neg_scaled_t(t: f64, scale: f64) -> f64 {
+    exp_neg_scaled_t2(t, scale, 0.0).0
+}
+
+/// [`exp_neg_scaled_t`] with two scales, (a·e^−x, b·e^−x) from one evaluation: the friction
+/// node wants the Stribeck term both as a torque and times h/I, and folding h/I into the
+/// table factor takes a multiply off its dependency chain.
+#[inline(always)]
+pub fn exp_neg_scaled_t2(t: f64, a: f64, b: f64) -> (f64, f64) {
     let shifted = t + MAGIC;
     let k = shifted - MAGIC; // round(t)
     let ki = shifted.to_bits() as i64; // its low bits, two's complement
@@ -292,7 +300,8 @@ pub fn exp_neg_scaled_t(t: f64, scale: f64) -> f64 {
     // 2^(k/256) = 2^(k >> 8) · table[k & 255]: add k >> 8 to the table entry's exponent.
     let j = (ki as usize) & (EN - 1);
     let e = ((ki << 44) >> 52) as u64; // sign-extended bits 8..19 of the low 20 bits: k >> 8
-    (scale * f64::from_bits(EXP2_TABLE[j].to_bits().wrapping_add(e << 52))) * p
+    let two_k = f64::from_bits(EXP2_TABLE[j].to_bits().wrapping_add(e << 52));
+    ((a * two_k) * p, (b * two_k) * p)
 }
 
 /// e^−x for 0 ≤ x ≤ 700 ([`exp_neg_scaled`] with scale 1).

@@ -91,6 +91,47 @@ impl FrictionLaw {
     }
 }
 
+impl FrictionLaw {
+    /// [`FrictionLaw::sliding`] in the friction node's form: (Coulomb + viscous part,
+    /// Stribeck part, Stribeck part × `h`); the first two sum to `sliding(v)`. The Stribeck
+    /// part is the last to be ready (an exp of the velocity), so the node subtracts it last,
+    /// already multiplied by its h/I.
+    #[inline(always)]
+    pub fn sliding_parts(&self, v: f64, h: f64) -> (f64, f64, f64) {
+        if v > 0.0 {
+            let base = self.coulomb_pos + self.viscous_pos * v;
+            if self.excess_pos > 0.0 {
+                let (s, hs) = stribeck::excess_decay_pair(
+                    v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_pos,
+                    h,
+                );
+                (base, s, hs)
+            } else {
+                (base, 0.0, 0.0)
+            }
+        } else if v < 0.0 {
+            let base = self.viscous_neg * v - self.coulomb_neg;
+            if self.excess_neg > 0.0 {
+                let (s, hs) = stribeck::excess_decay_pair(
+                    -v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_neg,
+                    h,
+                );
+                (base, -s, -hs)
+            } else {
+                (base, 0.0, 0.0)
+            }
+        } else {
+            (0.0, 0.0, 0.0)
+        }
+    }
+}
+
 /// Transmission spring: soft-zone/stiffening compliance plus a backlash dead zone, and
 /// structural damping while in contact (thesis §3.2 "Backlash", "Soft-zone").
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

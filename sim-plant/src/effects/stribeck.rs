@@ -74,6 +74,23 @@ pub fn excess_decay(v: f64, inv_vs: f64, delta: f64, excess: f64) -> f64 {
     }
 }
 
+/// [`excess_decay`] and the same times `h` (the friction node's h/I), from one exp.
+#[inline(always)]
+pub fn excess_decay_pair(v: f64, inv_vs: f64, delta: f64, excess: f64, h: f64) -> (f64, f64) {
+    if delta == 2.0 {
+        let v2 = v * v;
+        let e = v2 * (inv_vs * inv_vs);
+        return if e > 36.0 {
+            (0.0, 0.0)
+        } else {
+            let t = v2 * (inv_vs * inv_vs * -crate::fastmath::EXP_PER_LN2);
+            crate::fastmath::exp_neg_scaled_t2(t, excess, excess * h)
+        };
+    }
+    let d = excess_decay(v, inv_vs, delta, excess);
+    (d, d * h)
+}
+
 /// Add the excess to both directions and set the transition shape.
 pub fn install(p: &Params, laws: &mut EffectLaws) {
     let f = &mut laws.friction;

@@ -49,8 +49,11 @@ pub fn advance(
         let f = level.copysign(tau);
         return (h_over_i * (tau - f), f);
     }
-    let f = law.sliding(v);
-    let vn = (v - h_over_i * f) + h_over_i * (drive - load);
+    // f = base + stribeck, with the Stribeck part (late: an exp of v) entering last, already
+    // times h/I.
+    let (base, stribeck, h_stribeck) = law.sliding_parts(v, h_over_i);
+    let f = base + stribeck;
+    let vn = ((v - h_over_i * base) - h_stribeck) + h_over_i * (drive - load);
     if vn * v <= 0.0 {
         *stuck = true;
         return (0.0, f);
