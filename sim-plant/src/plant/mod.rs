@@ -771,10 +771,11 @@ impl Periodics {
 
 /// The transmission spring ([`crate::effects::SpringLaw`]: backlash gap, soft zone, stiff
 /// branch, damping while engaged) as a function of the raw deflection: on each branch the
-/// torque is `k·δ + c` with the gap and the knee folded into `c`, so the substep computes one
-/// multiply-add after the branch instead of subtracting the gap, then the knee, then
-/// multiplying and adding the knee torque (three fewer operations on the dependency chain;
-/// the branches are predictable). The same curve up to rounding.
+/// torque is `k·δ + (c + damping·δ̇)` with the gap and the knee folded into `c`, so the
+/// substep computes one multiply and one add after the deflection instead of subtracting the
+/// gap, then the knee, then multiplying, adding the knee torque and the damping (four fewer
+/// operations on the dependency chain; the branches are predictable). The same curve up to
+/// rounding.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct PiecewiseSpring {
     /// Half the backlash gap: no torque for |δ| ≤ gap.
@@ -809,18 +810,19 @@ impl PiecewiseSpring {
     /// [`crate::effects::SpringLaw::torque`]).
     #[inline(always)]
     fn torque(&self, d: f64, dd: f64) -> f64 {
-        let elastic = if d > self.knee {
-            self.k_hard * d + self.c_hard
+        let (k, c) = if d > self.knee {
+            (self.k_hard, self.c_hard)
         } else if d < -self.knee {
-            self.k_hard * d - self.c_hard
+            (self.k_hard, -self.c_hard)
         } else if d > self.gap {
-            self.k_soft * d + self.c_soft
+            (self.k_soft, self.c_soft)
         } else if d < -self.gap {
-            self.k_soft * d - self.c_soft
+            (self.k_soft, -self.c_soft)
         } else {
             return 0.0;
         };
-        elastic + self.damping * dd
+        // The offset and the damping (from the velocities) are ready before the deflection.
+        k * d + (c + self.damping * dd)
     }
 }
 
