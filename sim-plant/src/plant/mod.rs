@@ -35,7 +35,7 @@
 //! velocity, not by arithmetic, so the laws are written for a short chain. The periodic
 //! torques' phase is reduced exactly once per step and then carried as a table index plus
 //! fraction, advanced by each drift's increment with the index *predicted* from the previous
-//! increment ([`PhaseTrack`]): the angle's multiply and rounding are off the chain and the
+//! increment (`PhaseTrack`): the angle's multiply and rounding are off the chain and the
 //! value is one Estrin polynomial of the fraction. The spring is `k·δ + c` per branch, the
 //! Stribeck exp is inline and table-based, and in every sum the term that is ready last is
 //! added last. All of it is deterministic; it differs from the plain formulas by rounding.
@@ -568,8 +568,8 @@ impl Plant {
         }
         drift::<KIND>(&mut x, &v, 0.5 * h);
         // Phases of the periodic torques: reduced exactly here, then advanced by each drift's
-        // increment (see `Harmonic::predict`), re-anchored every step so nothing accumulates
-        // beyond one step. `*_inc` is the last increment (table steps), the next one's guess.
+        // increment (see `Harmonic::predict`), re-anchored every step so rounding cannot
+        // accumulate beyond one step's ten increments.
         let mut cog = PhaseTrack::start(cogging, x[0], v[0], h);
         let mut rip = PhaseTrack::start(ripple, x[node], v[node], h);
         let mut grav = PhaseTrack::start(gravity, x[node], v[node], h);
