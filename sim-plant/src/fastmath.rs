@@ -271,7 +271,7 @@ pub fn exp_neg_scaled(x: f64, scale: f64) -> f64 {
     exp_neg_scaled_t(x * -EXP_PER_LN2, scale)
 }
 
-/// `scale·e^−x` given t = −x·256/ln2 (−180 000 ≤ t ≤ 0), so that a caller can fold the
+/// `scale·e^−x` given t = −x·256/ln2 (−258 600 ≤ t ≤ 0), so that a caller can fold the
 /// 256/ln2 into its own constants (the Stribeck decay computes t = v²·(−256/(ln2·vs²)), one
 /// multiply less on the friction node's dependency chain). At low speed this is on that
 /// chain every substep, where a libm `exp` is a call with its own range checks; here it is
