@@ -54,33 +54,80 @@ impl FrictionLaw {
     }
 
     /// Resisting torque while sliding with velocity `v ≠ 0` (same sign as `v`).
+    ///
+    /// Summed as `(coulomb + viscous·v) + excess·decay`: the Stribeck term is the last to be
+    /// ready (an exp of the velocity), so it is added last, and the excess is folded into
+    /// the exp's table factor ([`stribeck::excess_decay`]).
     #[inline(always)]
     pub fn sliding(&self, v: f64) -> f64 {
-        // Without a stiction excess the Stribeck term is exactly 0: skip its exp().
         if v > 0.0 {
-            let dry = if self.excess_pos > 0.0 {
-                self.coulomb_pos
-                    + self.excess_pos
-                        * stribeck::decay_inv(v, self.inv_stribeck_velocity, self.stribeck_exponent)
+            let base = self.coulomb_pos + self.viscous_pos * v;
+            // Without a stiction excess the Stribeck term is exactly 0: skip its exp().
+            if self.excess_pos > 0.0 {
+                base + stribeck::excess_decay(
+                    v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_pos,
+                )
             } else {
-                self.coulomb_pos
-            };
-            dry + self.viscous_pos * v
+                base
+            }
         } else if v < 0.0 {
-            let dry = if self.excess_neg > 0.0 {
-                self.coulomb_neg
-                    + self.excess_neg
-                        * stribeck::decay_inv(
-                            -v,
-                            self.inv_stribeck_velocity,
-                            self.stribeck_exponent,
-                        )
+            let base = self.viscous_neg * v - self.coulomb_neg;
+            if self.excess_neg > 0.0 {
+                base - stribeck::excess_decay(
+                    -v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_neg,
+                )
             } else {
-                self.coulomb_neg
-            };
-            -dry + self.viscous_neg * v
+                base
+            }
         } else {
             0.0
+        }
+    }
+}
+
+impl FrictionLaw {
+    /// [`FrictionLaw::sliding`] in the friction node's form: (Coulomb + viscous part,
+    /// Stribeck part, Stribeck part × `h`); the first two sum to `sliding(v)`. The Stribeck
+    /// part is the last to be ready (an exp of the velocity), so the node subtracts it last,
+    /// already multiplied by its h/I.
+    #[inline(always)]
+    pub fn sliding_parts(&self, v: f64, h: f64) -> (f64, f64, f64) {
+        if v > 0.0 {
+            let base = self.coulomb_pos + self.viscous_pos * v;
+            if self.excess_pos > 0.0 {
+                let (s, hs) = stribeck::excess_decay_pair(
+                    v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_pos,
+                    h,
+                );
+                (base, s, hs)
+            } else {
+                (base, 0.0, 0.0)
+            }
+        } else if v < 0.0 {
+            let base = self.viscous_neg * v - self.coulomb_neg;
+            if self.excess_neg > 0.0 {
+                let (s, hs) = stribeck::excess_decay_pair(
+                    -v,
+                    self.inv_stribeck_velocity,
+                    self.stribeck_exponent,
+                    self.excess_neg,
+                    h,
+                );
+                (base, -s, -hs)
+            } else {
+                (base, 0.0, 0.0)
+            }
+        } else {
+            (0.0, 0.0, 0.0)
         }
     }
 }

@@ -40,24 +40,55 @@ pub fn decay(v: f64, vs: f64, delta: f64) -> f64 {
     decay_inv(v, 1.0 / vs, delta)
 }
 
-/// [`decay`] with 1/vs precomputed (the integrator's form: no division on the dependency
-/// chain of the friction node).
+/// [`decay`] with 1/vs precomputed.
 #[inline(always)]
 pub fn decay_inv(v: f64, inv_vs: f64, delta: f64) -> f64 {
+    excess_decay(v, inv_vs, delta, 1.0)
+}
+
+/// `excess·exp(−(v/vs)^δ)` for `v ≥ 0` with 1/vs precomputed: the integrator's form, with no
+/// division on the friction node's dependency chain and the excess folded into the exp
+/// ([`crate::fastmath::exp_neg_scaled`], inline and table-based: at low speed this is on the
+/// chain every substep).
+#[inline(always)]
+pub fn excess_decay(v: f64, inv_vs: f64, delta: f64, excess: f64) -> f64 {
+    if delta == 2.0 {
+        // The common Gaussian case: the exp's argument straight from v² (the constant is
+        // loop-invariant in the integrator), one multiply shorter than (v/vs)² then ·256/ln2.
+        let v2 = v * v;
+        let e = v2 * (inv_vs * inv_vs);
+        // exp(−36) ≈ 2e-16: below f64 resolution of any friction level, skip the exp().
+        return if e > 36.0 {
+            0.0
+        } else {
+            let t = v2 * (inv_vs * inv_vs * -crate::fastmath::EXP_PER_LN2);
+            crate::fastmath::exp_neg_scaled_t(t, excess)
+        };
+    }
     let x = v * inv_vs;
-    let e = if delta == 2.0 {
-        x * x
-    } else if delta == 1.0 {
-        x
-    } else {
-        x.powf(delta)
-    };
-    // exp(−36) ≈ 2e-16: below f64 resolution of any friction level, skip the exp().
+    let e = if delta == 1.0 { x } else { x.powf(delta) };
     if e > 36.0 {
         0.0
     } else {
-        (-e).exp()
+        crate::fastmath::exp_neg_scaled(e, excess)
     }
+}
+
+/// [`excess_decay`] and the same times `h` (the friction node's h/I), from one exp.
+#[inline(always)]
+pub fn excess_decay_pair(v: f64, inv_vs: f64, delta: f64, excess: f64, h: f64) -> (f64, f64) {
+    if delta == 2.0 {
+        let v2 = v * v;
+        let e = v2 * (inv_vs * inv_vs);
+        return if e > 36.0 {
+            (0.0, 0.0)
+        } else {
+            let t = v2 * (inv_vs * inv_vs * -crate::fastmath::EXP_PER_LN2);
+            crate::fastmath::exp_neg_scaled_t2(t, excess, excess * h)
+        };
+    }
+    let d = excess_decay(v, inv_vs, delta, excess);
+    (d, d * h)
 }
 
 /// Add the excess to both directions and set the transition shape.

@@ -15,10 +15,11 @@ use crate::effects::FrictionLaw;
 
 /// Velocity after one substep and the resisting friction torque used (same sign as the
 /// motion it resists). Every other torque on the node is `drive − load`, split so that the
-/// integrator's position-dependent `load` (ripple, gravity, …) enters last: the sliding update
-/// is `v + h/I·((drive − f) − load)`, a reassociation of `v + h/I·((drive − load) − f)` that
-/// takes two additions off the substep's critical path. `h_over_i` is the substep divided by
-/// the node's inertia.
+/// integrator's position-dependent `load` (ripple, gravity, …) can enter late: the sliding
+/// update is `(v − h/I·f) + h/I·(drive − load)`, a reassociation of `v + h/I·(drive − load −
+/// f)` with two short branches — the friction (late at low speed, where it has the Stribeck
+/// exp) and the torques from the positions (late at speed) — each two operations from the
+/// result. `h_over_i` is the substep divided by the node's inertia.
 #[inline(always)]
 pub fn advance(
     v: f64,
@@ -31,21 +32,28 @@ pub fn advance(
 ) -> (f64, f64) {
     if !dry {
         let f = law.sliding(v);
-        return (v + h_over_i * ((drive - f) - load), f);
+        return ((v - h_over_i * f) + h_over_i * (drive - load), f);
     }
     if *stuck {
         let tau = drive - load;
-        let dir = if tau >= 0.0 { 1.0 } else { -1.0 };
-        let level = law.breakaway(dir);
+        // The level for τ's direction as a select of two sums rather than a branch: a held
+        // node's τ hovers around zero and flips sign unpredictably.
+        let pos = law.coulomb_pos + law.excess_pos;
+        let neg = law.coulomb_neg + law.excess_neg;
+        let level = if tau >= 0.0 { pos } else { neg };
         if tau.abs() <= level {
             return (0.0, tau);
         }
         *stuck = false;
-        let f = dir * level;
+        // Breaking away means |τ| > level ≥ 0, so τ ≠ 0 and its sign is the direction.
+        let f = level.copysign(tau);
         return (h_over_i * (tau - f), f);
     }
-    let f = law.sliding(v);
-    let vn = v + h_over_i * ((drive - f) - load);
+    // f = base + stribeck, with the Stribeck part (late: an exp of v) entering last, already
+    // times h/I.
+    let (base, stribeck, h_stribeck) = law.sliding_parts(v, h_over_i);
+    let f = base + stribeck;
+    let vn = ((v - h_over_i * base) - h_stribeck) + h_over_i * (drive - load);
     if vn * v <= 0.0 {
         *stuck = true;
         return (0.0, f);
