@@ -34,6 +34,8 @@ impl Run {
             position: &self.q,
             velocity: &self.v,
             acceleration: &self.a,
+            raw_input: &self.u,
+            lowpass_hz: 0.0,
         }
     }
 

@@ -5,7 +5,8 @@
 //! equation-error residual of the current model:
 //!
 //! 1. **Shape search.** Effects with shape parameters (Stribeck velocity, ripple period,
-//!    backlash width, …) are scanned over `shape_grid`; for each shape the error-reduction
+//!    backlash width, compliance mode, quantiser step, …) are scanned over `shape_grid`, and
+//!    sharp ones again over a finer `refine_grid` around the best grid point (`shape_search`); for each shape the error-reduction
 //!    ratio ERR = ΔRSS/RSS of adding `Z` to the current regressors `X` is computed in closed
 //!    form from `ZᵀZ`, `ZᵀX`, `Zᵀe` (a partial-regression update, no refit), and the best
 //!    shape is kept.
@@ -35,7 +36,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
-use sim_plant::effects::{fingerprint, shape_grid, EffectKind, Shape};
+use sim_plant::effects::{fingerprint, shape_search, EffectKind, Shape};
 
 use super::fit::{self, gram, gram_inverse};
 use super::metrics;
@@ -162,28 +163,32 @@ fn scan(
     rss: f64,
 ) -> Option<Scan> {
     let t = p.trajectory();
-    let grid = shape_grid(kind, &t);
-    let mut best: Option<Scan> = None;
-    for s in &grid {
+    // Where physics fixes the sign of the first amplitude, a shape whose fit has the wrong
+    // sign explains nothing (the same rule as the test below), so the search does not settle
+    // on it and hide an admissible shape.
+    let sign = kind.admissible_sign();
+    let (shape, dr, grid) = shape_search(kind, &t, |s| {
         let z = fingerprint(kind, &t, s);
         if z.is_empty() {
-            continue;
+            return None;
         }
-        let dr = delta_rss(&z, x0, g0i, e);
-        if best.as_ref().is_none_or(|b| dr / rss > b.err) {
-            best = Some(Scan {
-                kind,
-                shape: s.clone(),
-                err: dr / rss,
-                grid: grid.len(),
-            });
-        }
-    }
-    best
+        let (dr, first) = delta_rss_signed(&z, x0, g0i, e);
+        Some(match sign {
+            Some(sg) if first * sg <= 0.0 => 0.0,
+            _ => dr,
+        })
+    })?;
+    Some(Scan {
+        kind,
+        shape,
+        err: dr / rss,
+        grid,
+    })
 }
 
-/// ΔRSS from adding columns `z` to regressors `x0` (residual `e` ⟂ `x0`).
-fn delta_rss(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> f64 {
+/// ΔRSS from adding columns `z` to regressors `x0` (residual `e` ⟂ `x0`), and the fitted
+/// amplitude of the first column of `z`.
+fn delta_rss_signed(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> (f64, f64) {
     let q = z.len();
     let p = x0.len();
     let zx = DMatrix::from_fn(q, p, |i, j| {
@@ -199,11 +204,12 @@ fn delta_rss(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) -> 
     // Columns the current model already spans carry no new information.
     for i in 0..q {
         if zt[(i, i)] <= 1e-9 * zz[(i, i)].max(1e-300) {
-            return 0.0;
+            return (0.0, 0.0);
         }
     }
     let zti = gram_inverse(&zt);
-    (ze.transpose() * zti * &ze)[(0, 0)].max(0.0)
+    let theta = &zti * &ze;
+    ((ze.transpose() * theta.clone())[(0, 0)].max(0.0), theta[0])
 }
 
 /// Partial projection of `e` on `z` after removing `x0`: the candidate's best-fit contribution.

@@ -111,6 +111,8 @@ impl Prepared {
             position: &self.position,
             velocity: &self.velocity,
             acceleration: &self.acceleration,
+            raw_input: &self.raw_input,
+            lowpass_hz: self.cutoff_hz,
         }
     }
 
@@ -264,6 +266,8 @@ pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -
         position: &xs,
         velocity: &vs,
         acceleration: &as_,
+        raw_input: &us,
+        lowpass_hz: 0.0,
     };
     let mut f = 0.0;
     for e in &model.effects {
