@@ -80,9 +80,6 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let lo = (0.3 * lo).min(0.01 * range);
     let hi = (range / 3.0).max(lo);
     let count = (((hi / lo).ln() / 1.03f64.ln()).ceil() as usize).max(1);
-    if std::env::var_os("HIDDEN_DEBUG").is_some() {
-        eprintln!("quant grid: scatter {lo:.3e} range {range:.3e} hi {hi:.3e} count {count}");
-    }
     log_space(lo, hi, count)
         .into_iter()
         .map(|quantum| Shape {
