@@ -35,6 +35,7 @@ impl Run {
             velocity: &self.v,
             acceleration: &self.a,
             raw_input: &self.u,
+            raw_offset: 0,
             lowpass_hz: 0.0,
         }
     }

@@ -99,13 +99,14 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     if n < 8 || traj.dt <= 0.0 {
         return vec![vec![0.0; n]];
     }
+    let (u, window) = traj.recorded_input();
     let hp = highpass2(
-        traj.recorded_input(),
+        u,
         shape.compliance_frequency,
         shape.compliance_damping,
         1.0 / traj.dt,
     );
-    vec![traj.lowpass(&hp)]
+    vec![traj.lowpass(&hp)[window].to_vec()]
 }
 
 /// Lowest mode frequency searched (Hz): below it a transmission mode is inside the motion band
@@ -113,13 +114,13 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 pub const MIN_FREQUENCY: f64 = 2.0;
 
 /// Mode frequencies log-spaced (steps of ≈ 20 %) from [`MIN_FREQUENCY`] to the lower of 0.4× the
-/// sample rate and 4× the residual's low-pass, each at a light (0.05) and a moderate (0.3)
+/// sample rate and 2× the residual’s low-pass, each at a light (0.05) and a moderate (0.3)
 /// damping ratio; [`refine_grid`] narrows the best one down.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let fs = if traj.dt > 0.0 { 1.0 / traj.dt } else { 1.0e3 };
     let mut hi = 0.4 * fs;
     if traj.lowpass_hz > 0.0 {
-        hi = hi.min(4.0 * traj.lowpass_hz);
+        hi = hi.min(2.0 * traj.lowpass_hz);
     }
     let lo = MIN_FREQUENCY.min(0.5 * hi);
     let count = (((hi / lo).ln() / 1.2f64.ln()).ceil() as usize).max(2);

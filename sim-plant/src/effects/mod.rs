@@ -50,8 +50,12 @@ pub struct Trajectory<'a> {
     pub acceleration: &'a [f64],
     /// The input as recorded, before any filtering or reconstruction (`input` may be a
     /// smoothed or motion-based stand-in for it). Fingerprints that are a *dynamic* function of
-    /// the command (compliance, quantisation) are built from it.
+    /// the command (compliance, quantisation) are built from it. It may extend beyond the
+    /// trajectory (the whole record, of which the trajectory is a window starting at
+    /// `raw_offset`), so that filters see the command's history and not a start-up transient.
     pub raw_input: &'a [f64],
+    /// Index in `raw_input` of the trajectory's first sample.
+    pub raw_offset: usize,
     /// Cut-off (Hz) of the zero-phase low-pass ([`signal::filtfilt`]) the residual went through
     /// (the smoothing differentiator's); 0 = none. Fingerprints built from `raw_input` apply it
     /// so that they see the bandwidth the residual saw.
@@ -77,13 +81,14 @@ impl Trajectory<'_> {
         }
     }
 
-    /// The recorded input (`raw_input` if it covers the trajectory, else `input`).
-    pub fn recorded_input(&self) -> &[f64] {
+    /// The recorded input and the window of it the trajectory covers: `raw_input` (the whole
+    /// record) if it covers the trajectory at `raw_offset`, else `input` itself.
+    pub fn recorded_input(&self) -> (&[f64], std::ops::Range<usize>) {
         let n = self.len();
-        if self.raw_input.len() >= n {
-            &self.raw_input[..n]
+        if self.raw_input.len() >= self.raw_offset + n {
+            (self.raw_input, self.raw_offset..self.raw_offset + n)
         } else {
-            &self.input[..n]
+            (&self.input[..n], 0..n)
         }
     }
 
@@ -429,6 +434,7 @@ mod tests {
             velocity: &v,
             acceleration: &a,
             raw_input: &u,
+            raw_offset: 0,
             lowpass_hz: 0.0,
         };
         for k in EffectKind::ALL {

@@ -45,13 +45,13 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 
 /// `[lowpass(u − Q_Δ(u))]` of the recorded command (zeros when Δ = 0).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    let u = traj.recorded_input();
+    let (u, window) = traj.recorded_input();
     let d = shape.quantum;
     vec![if d > 0.0 {
         let saw: Vec<f64> = u.iter().map(|&u| error(u, d)).collect();
-        traj.lowpass(&saw)
+        traj.lowpass(&saw)[window].to_vec()
     } else {
-        vec![0.0; u.len()]
+        vec![0.0; window.len()]
     }]
 }
 
@@ -73,7 +73,8 @@ fn scatter(u: &[f64]) -> f64 {
 /// hundredth of its range if smaller) to a third of its range (it must span a few steps). The sawtooth of
 /// a wrong step decorrelates quickly, hence the fine spacing; [`refine_grid`] polishes it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    let u = traj.recorded_input();
+    let (u, window) = traj.recorded_input();
+    let u = &u[window];
     let range = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let range = positive_or(range, 1.0);
     let lo = positive_or(scatter(u), 1e-3 * range);
