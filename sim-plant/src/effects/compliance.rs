@@ -113,17 +113,13 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 /// and no longer a "missing effect" of a rigid model.
 pub const MIN_FREQUENCY: f64 = 2.0;
 
-/// Mode frequencies log-spaced (steps of ≈ 20 %) from [`MIN_FREQUENCY`] to the lower of 0.4× the
+/// Mode frequencies log-spaced (steps of ≈ 25 %) from [`MIN_FREQUENCY`] to the lower of 0.4× the
 /// sample rate and 2× the residual’s low-pass, each at a light (0.05) and a moderate (0.3)
 /// damping ratio; [`refine_grid`] narrows the best one down.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    let fs = if traj.dt > 0.0 { 1.0 / traj.dt } else { 1.0e3 };
-    let mut hi = 0.4 * fs;
-    if traj.lowpass_hz > 0.0 {
-        hi = hi.min(2.0 * traj.lowpass_hz);
-    }
+    let hi = top_frequency(traj);
     let lo = MIN_FREQUENCY.min(0.5 * hi);
-    let count = (((hi / lo).ln() / 1.2f64.ln()).ceil() as usize).max(2);
+    let count = (((hi / lo).ln() / 1.25f64.ln()).ceil() as usize).max(2);
     let mut out = Vec::new();
     for f in log_space(lo, hi, count) {
         for zeta in [0.05, 0.3] {
@@ -137,12 +133,30 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     out
 }
 
-/// Finer frequencies (±20 % in ≈ 4 % steps) and damping ratios around `best`.
+/// Highest mode frequency of [`shape_grid`] (Hz): the lower of 0.4× the sample rate and 2× the
+/// residual's low-pass.
+pub fn top_frequency(traj: &Trajectory) -> f64 {
+    let fs = if traj.dt > 0.0 { 1.0 / traj.dt } else { 1.0e3 };
+    let mut hi = 0.4 * fs;
+    if traj.lowpass_hz > 0.0 {
+        hi = hi.min(2.0 * traj.lowpass_hz);
+    }
+    hi
+}
+
+/// A mode is resolved when it lies below the top of the grid: a search that ends at or above
+/// the top has found a mode above the record's bandwidth, whose frequency the record does not
+/// identify (the column is then `≈ u⁽²⁾/ω²`, any ω above the band fits).
+pub fn resolved(traj: &Trajectory, shape: &Shape) -> bool {
+    shape.compliance_frequency < top_frequency(traj) * (1.0 - 1e-9)
+}
+
+/// Finer frequencies (±15 % in 5 % steps) and damping ratios around `best`.
 pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     let mut out = Vec::new();
-    for i in -5i32..=5 {
-        let f = best.compliance_frequency * 1.04f64.powi(i);
-        for zeta in [0.03, 0.05, 0.1, 0.2, 0.3, 0.5] {
+    for i in -3i32..=3 {
+        let f = best.compliance_frequency * 1.05f64.powi(i);
+        for zeta in [0.03, 0.05, 0.1, 0.2, 0.4] {
             out.push(Shape {
                 compliance_frequency: f,
                 compliance_damping: zeta,

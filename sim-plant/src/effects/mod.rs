@@ -346,6 +346,17 @@ pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Sha
     }
 }
 
+/// Whether the record resolves `shape` of `kind`: false when a shape search ends at the edge
+/// of what the record can identify — a compliance mode at or above the top of its grid (above
+/// the residual's bandwidth only `J2/(J1·ω²)` is identifiable, not the mode, and a stiff
+/// transmission there is not a missing effect at this bandwidth). True for other effects.
+pub fn resolved(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> bool {
+    match kind {
+        EffectKind::Compliance => compliance::resolved(traj, shape),
+        _ => true,
+    }
+}
+
 /// Best shape of `kind` by `score` (higher is better; `None` = not testable at that shape):
 /// scans [`shape_grid`], then [`refine_grid`] around the best grid point. Returns the best
 /// shape, its score and the number of shapes scored (the search's multiplicity).

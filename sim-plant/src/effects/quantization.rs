@@ -69,7 +69,7 @@ fn scatter(u: &[f64]) -> f64 {
     (s / m as f64 / 6.0).sqrt()
 }
 
-/// Steps log-spaced (≈ 3 % apart) from 0.3× the command's sample-to-sample scatter (or a
+/// Steps log-spaced (≈ 6 % apart) from 0.3× the command's sample-to-sample scatter (or a
 /// hundredth of its range if smaller) to a third of its range (it must span a few steps). The sawtooth of
 /// a wrong step decorrelates quickly, hence the fine spacing; [`refine_grid`] polishes it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
@@ -80,7 +80,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let lo = positive_or(scatter(u), 1e-3 * range);
     let lo = (0.3 * lo).min(0.01 * range);
     let hi = (range / 3.0).max(lo);
-    let count = (((hi / lo).ln() / 1.03f64.ln()).ceil() as usize).max(1);
+    let count = (((hi / lo).ln() / 1.06f64.ln()).ceil() as usize).max(1);
     log_space(lo, hi, count)
         .into_iter()
         .map(|quantum| Shape {
@@ -90,12 +90,12 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
         .collect()
 }
 
-/// Steps within ±1.5 % of `best`, 0.5 % apart.
+/// Steps within ±3 % of `best`, 1 % apart.
 pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     (-3i32..=3)
         .filter(|&i| i != 0)
         .map(|i| Shape {
-            quantum: best.quantum * 1.005f64.powi(i),
+            quantum: best.quantum * 1.01f64.powi(i),
             ..best.clone()
         })
         .collect()
