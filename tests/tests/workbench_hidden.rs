@@ -1,12 +1,17 @@
 //! Hidden-effect trials, reduced for CI (the full ≥ 200-per-family run with the confusion
 //! matrix is `cargo run --release -p jointlab-tests --bin hidden-trials`).
 //!
-//! Trial counts here: 3 per family at target ρ = 2 for the six families that currently meet
-//! the bar (offset, coulomb, asymmetry, ripple, gravity, delay), 10 null trials, 2
-//! pair trials for `--auto`. Seeds are fixed and consecutive (not picked); each group allows
-//! at most the misses stated in its assertion. Families that do NOT yet meet the bar
-//! (stribeck, backlash, compliance, quantization; the refit-to-noise-floor of Coulomb, gravity and delay) are measured
-//! by the bench binary and listed in docs/workbench.md — they are not asserted here.
+//! Trial counts here: 3 per family at target ρ = 2 (rank 1 and verdict; compliance: rank 1)
+//! for the seven families whose rank-1 rate
+//! currently meets (or nearly meets) the bar (offset, coulomb, asymmetry, ripple,
+//! gravity, delay, compliance), 10 null trials, 2 pair trials for `--auto`. Seeds are fixed
+//! and consecutive (not picked); each group allows at most the misses stated in its assertion.
+//! What does NOT yet meet the bar (stribeck, backlash; the refit-to-noise-floor of Coulomb,
+//! gravity, delay and compliance) is measured by the bench binary and listed in
+//! docs/workbench.md — it is not asserted here. Quantization ranks first in 95 % of the bench's
+//! trials at ρ ≥ 1 but is not asserted either: its generator misses the strength target on
+//! this group's seeds (measured ρ 0.9–1.4 for a target of 2), and on two of the three an
+//! unresolved (above-band) compliance mode ranks first.
 //!
 //! Run in release (about 30–60 s on 2 cores):
 //! `cargo test --release -p jointlab-tests --test workbench_hidden`
@@ -26,6 +31,7 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
         Family::Ripple,
         Family::Gravity,
         Family::Delay,
+        Family::Compliance,
     ];
     for (i, f) in fams.iter().enumerate() {
         let base = 50_000 + 100 * i as u64;
@@ -47,9 +53,13 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
                 o.rho
             );
         }
+        // Compliance: rank 1 only. A transmission mode above the record's bandwidth (2× the
+        // differentiator's cut-off) is ranked but not a verdict — the record does not identify
+        // the mode — and this group's compliance draws put it there in two of three trials.
+        let verdict_needed = *f != Family::Compliance;
         let hits = out
             .iter()
-            .filter(|o| o.rank1_ok() && o.verdict.as_deref() == Some(f.name()))
+            .filter(|o| o.rank1_ok() && (!verdict_needed || o.verdict.as_deref() == Some(f.name())))
             .count();
         assert!(
             hits == out.len(),

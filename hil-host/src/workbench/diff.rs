@@ -13,74 +13,9 @@
 /// Samples dropped at each end, in periods of the cut-off frequency.
 pub const EDGE_CUTOFF_PERIODS: f64 = 5.0;
 
-#[derive(Debug, Clone, Copy)]
-struct Biquad {
-    b0: f64,
-    b1: f64,
-    b2: f64,
-    a1: f64,
-    a2: f64,
-}
-
-impl Biquad {
-    fn lowpass(fc: f64, fs: f64, q: f64) -> Self {
-        let k = (std::f64::consts::PI * fc / fs).tan();
-        let norm = 1.0 / (1.0 + k / q + k * k);
-        let b0 = k * k * norm;
-        Biquad {
-            b0,
-            b1: 2.0 * b0,
-            b2: b0,
-            a1: 2.0 * (k * k - 1.0) * norm,
-            a2: (1.0 - k / q + k * k) * norm,
-        }
-    }
-    /// Filter in place, starting from the steady state of the first sample.
-    fn run(&self, x: &mut [f64]) {
-        let Some(&c) = x.first() else { return };
-        let mut z2 = (self.b2 - self.a2) * c;
-        let mut z1 = (self.b1 - self.a1) * c + z2;
-        for v in x.iter_mut() {
-            let xi = *v;
-            let y = self.b0 * xi + z1;
-            z1 = self.b1 * xi - self.a1 * y + z2;
-            z2 = self.b2 * xi - self.a2 * y;
-            *v = y;
-        }
-    }
-}
-
-/// Zero-phase 4th-order Butterworth low-pass of `x` (sample rate `fs`, cut-off `fc`, Hz).
-/// The forward–backward pass squares the magnitude response (−6 dB at `fc`).
-pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
-    let n = x.len();
-    if n < 3 || fc <= 0.0 || fc >= fs / 2.0 {
-        return x.to_vec();
-    }
-    let secs = [
-        Biquad::lowpass(fc, fs, 0.541_196_100_146_197),
-        Biquad::lowpass(fc, fs, 1.306_562_964_876_376_6),
-    ];
-    let pad = ((3.0 * fs / fc).ceil() as usize + 12).min(n - 1);
-    // Odd reflection about the end points keeps value and slope continuous.
-    let mut buf = Vec::with_capacity(n + 2 * pad);
-    for i in (1..=pad).rev() {
-        buf.push(2.0 * x[0] - x[i]);
-    }
-    buf.extend_from_slice(x);
-    for i in 1..=pad {
-        buf.push(2.0 * x[n - 1] - x[n - 1 - i]);
-    }
-    for s in &secs {
-        s.run(&mut buf);
-    }
-    buf.reverse();
-    for s in &secs {
-        s.run(&mut buf);
-    }
-    buf.reverse();
-    buf[pad..pad + n].to_vec()
-}
+/// Zero-phase 4th-order Butterworth low-pass of `x` (sample rate `fs`, cut-off `fc`, Hz); it
+/// lives in `sim_plant::effects::signal` so that fingerprints can apply the same filter.
+pub use sim_plant::effects::signal::filtfilt;
 
 /// RMS gain of the zero-phase filter for white noise (√Σh² of its impulse response).
 pub fn noise_gain(fc: f64, fs: f64) -> f64 {

@@ -12,9 +12,11 @@
 //!
 //! * amplitudes whose effect has a parameter with role `Amplitude(i)` are that parameter;
 //! * backlash's amplitude (the inertia beyond the gap) is `plant.output_inertia`; compliance's
-//!   (`−J_far²/K` seen from a motor-side sensor) is derived from `compliance.stiffness` and
-//!   `plant.output_inertia` (if the file has no output inertia, the split `J_far = J/2` is
-//!   assumed and written);
+//!   (`−J2/J1` seen from a motor-side sensor, J2 = `plant.output_inertia`, J1 = J − J2) sets
+//!   the inertia split (if the file has no output inertia, `J2 = J/2` is assumed and written),
+//!   and its analysis shape — the coupled mode's frequency and damping ratio,
+//!   ω² = K·(1/J1 + 1/J2), 2ζω = c·(1/J1 + 1/J2) — is `compliance.stiffness` and
+//!   `compliance.damping` given that split;
 //! * physical shapes (Stribeck velocity and exponent, ripple period, cogging cycles, backlash
 //!   width, dead-zone input scale, quantiser step) are the effects' parameters; analysis shapes
 //!   (sign smoothing, differentiator smoothing, the delay a column was built for) and the 1σ go
@@ -206,6 +208,20 @@ impl Model {
                 EffectKind::Backlash => shape.backlash_width = value("width"),
                 EffectKind::Deadband => shape.input_scale = value("input_scale"),
                 EffectKind::Quantization => shape.quantum = value("step"),
+                EffectKind::Compliance => {
+                    let far = if j_far > 0.0 { j_far } else { 0.5 * j };
+                    let k = value("stiffness");
+                    if k > 0.0 && far < j {
+                        let (f, zeta) = sim_plant::effects::compliance::mode_from_spring(
+                            k,
+                            value("damping"),
+                            j - far,
+                            far,
+                        );
+                        shape.compliance_frequency = f;
+                        shape.compliance_damping = zeta;
+                    }
+                }
                 _ => {}
             }
             let mut entry = EffectEntry::new(kind, shape);
@@ -214,10 +230,9 @@ impl Model {
                     (_, Some(q)) => (q.value, q.free),
                     (EffectKind::Backlash, None) => (j_far, sim.plant.output_inertia.free),
                     (EffectKind::Compliance, None) => {
-                        let k = value("stiffness");
                         let far = if j_far > 0.0 { j_far } else { 0.5 * j };
                         let free = by_name("stiffness").is_some_and(|q| q.free);
-                        (if k > 0.0 { -far * far / k } else { 0.0 }, free)
+                        (if far < j { -far / (j - far) } else { 0.0 }, free)
                     }
                     (_, None) => (0.0, true),
                 };
@@ -307,12 +322,16 @@ impl Model {
             match e.kind {
                 EffectKind::Backlash => j_far = Some((e.params[0].value, e.params[0].free)),
                 EffectKind::Compliance if j_far.is_none() => {
+                    // −J2/J1 = α  ⇒  J2 = J·|α|/(1 + |α|).
+                    let ratio = e.params[0].value.abs();
                     let t = &sim.plant.output_inertia;
-                    if t.value > 0.0 {
-                        j_far = Some((t.value, t.free));
+                    j_far = Some(if ratio > 0.0 && ratio.is_finite() {
+                        (self.inertia.value * ratio / (1.0 + ratio), e.params[0].free)
+                    } else if t.value > 0.0 {
+                        (t.value, t.free)
                     } else {
-                        j_far = Some((0.5 * self.inertia.value, false));
-                    }
+                        (0.5 * self.inertia.value, false)
+                    });
                 }
                 _ => {}
             }
@@ -328,17 +347,24 @@ impl Model {
                 },
             );
         }
-        // Compliance: K = J_far²/|α|.
+        // Compliance: K and c from the mode and the split, ω² = K·(1/J1 + 1/J2).
         if let (Some(e), Some((far, _))) = (
             self.effects
                 .iter()
                 .find(|e| e.kind == EffectKind::Compliance),
             j_far,
         ) {
-            let alpha = e.params[0].value.abs();
+            let near = self.inertia.value - far;
             if let Some(c) = sim.effects.compliance.as_mut() {
-                if alpha > 0.0 && far > 0.0 {
-                    c.stiffness.value = far * far / alpha;
+                if far > 0.0 && near > 0.0 && e.shape.compliance_frequency > 0.0 {
+                    let (k, damping) = sim_plant::effects::compliance::spring_from_mode(
+                        e.shape.compliance_frequency,
+                        e.shape.compliance_damping,
+                        near,
+                        far,
+                    );
+                    c.stiffness.value = k;
+                    c.damping.value = damping;
                 }
                 c.stiffness.free = e.params[0].free;
             }
@@ -423,6 +449,46 @@ mod tests {
             assert_eq!(a.shape, b.shape, "{}", a.kind.name());
             assert_eq!(a.params, b.params, "{}", a.kind.name());
         }
+    }
+
+    #[test]
+    fn compliance_maps_to_the_inertia_split_and_the_spring_of_its_mode() {
+        let mut m = Model::baseline();
+        m.inertia.value = 0.03;
+        let shape = Shape {
+            compliance_frequency: 25.0,
+            compliance_damping: 0.05,
+            ..Shape::default()
+        };
+        m.add(EffectKind::Compliance, shape);
+        let e = m.effects.last_mut().unwrap();
+        e.params[0].value = -0.5; // J2/J1 = 1/2
+        let sim = m.to_sim();
+        // J2 = J·0.5/1.5 = 0.01, J1 = 0.02.
+        assert!((sim.plant.output_inertia.value - 0.01).abs() < 1e-12);
+        assert!((sim.motor.inertia.value - 0.02).abs() < 1e-12);
+        let c = sim.effects.compliance.as_ref().unwrap();
+        let w = std::f64::consts::TAU * 25.0;
+        let jr = 0.02 * 0.01 / 0.03;
+        assert!((c.stiffness.value - w * w * jr).abs() < 1e-9 * w * w * jr);
+        assert!((c.damping.value - 2.0 * 0.05 * w * jr).abs() < 1e-9);
+        // Read back through the file: the same amplitude and mode.
+        let text = sim.to_toml_string();
+        let sim = sim_plant::Model::from_toml_str(&text, "c.toml").unwrap();
+        let back = Model::from_sim(&sim).unwrap();
+        let e = back
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Compliance)
+            .unwrap();
+        assert!(
+            (e.params[0].value + 0.5).abs() < 1e-9,
+            "{}",
+            e.params[0].value
+        );
+        assert!((e.shape.compliance_frequency - 25.0).abs() < 1e-9);
+        assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
+        assert!((back.inertia.value - 0.03).abs() < 1e-12);
     }
 
     #[test]

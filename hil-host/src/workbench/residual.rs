@@ -49,8 +49,11 @@ pub struct Prepared {
     /// counterpart in the smoothed acceleration and ends up as structured residual that
     /// broadband fingerprints (compliance, delay) happily "explain".
     pub input: Vec<f64>,
-    /// Measured input as recorded (SI).
+    /// Measured input as recorded (SI), the whole record (edges included: fingerprints filter
+    /// it with its history, see `sim_plant::effects::Trajectory::raw_input`).
     pub raw_input: Vec<f64>,
+    /// Index in `raw_input` of the first kept sample.
+    pub raw_offset: usize,
     /// White-noise RMS of the raw input (second-difference estimate) times the filter's noise
     /// gain: the RMS a perfect model would leave in the equation-error residual.
     pub noise_floor: f64,
@@ -82,7 +85,8 @@ impl Prepared {
         let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
             input: uf[r.clone()].to_vec(),
-            raw_input: rec.input[r.clone()].to_vec(),
+            raw_input: rec.input.clone(),
+            raw_offset: e,
             noise_floor: floor,
             raw_position: rec.output[r.clone()].to_vec(),
             position: d.position[r.clone()].to_vec(),
@@ -111,6 +115,9 @@ impl Prepared {
             position: &self.position,
             velocity: &self.velocity,
             acceleration: &self.acceleration,
+            raw_input: &self.raw_input,
+            raw_offset: self.raw_offset,
+            lowpass_hz: self.cutoff_hz,
         }
     }
 
@@ -264,6 +271,9 @@ pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -
         position: &xs,
         velocity: &vs,
         acceleration: &as_,
+        raw_input: &us,
+        raw_offset: 0,
+        lowpass_hz: 0.0,
     };
     let mut f = 0.0;
     for e in &model.effects {

@@ -8,16 +8,20 @@
 //! while engaged. Without this effect (and without backlash) the transmission is rigid and
 //! the plant is one inertia `J = N²·I1 + I2`.
 //!
-//! Fingerprint (linearised, rigid model → 2-mass): with the motor position measured,
-//! the load lags by `J2·a2/K`, so `a2 ≈ a − (J2/K)·q⁽⁴⁾` and
-//! `u = J1·a + J2·a2 = J·a − (J2²/K)·q⁽⁴⁾`; measured at the output instead,
-//! `u = J·a + (J1·J2/K)·q⁽⁴⁾`. Either way the residual is `α·d²a/dt²` with `α` of either sign
-//! and magnitude `J_far²/K` (kg·m²·s²): column `[d²a/dt²]` (smoothed, `Shape::smoothing`).
-//! Its amplitude is a combination, not a model parameter. Thesis-notes §7.10/7.11: ringing
-//! at the transmission mode after steps, motor and load velocities differ at that mode; a
-//! soft zone makes that frequency depend on load.
+//! Fingerprint (rigid model → 2-mass, motor-side sensor, linear spring): with J = J1 + J2,
+//! ω² = K·(1/J1 + 1/J2) and 2ζω = c·(1/J1 + 1/J2), the motor acceleration answers the input
+//! as `J·a1 = u·((J/J1)·s² + 2ζω·s + ω²)/(s² + 2ζω·s + ω²)`, so the rigid residual is
+//! `r = u − J·a1 = −(J2/J1) · H(s)·u`, `H = s²/(s² + 2ζω·s + ω²)`: the command high-passed at
+//! the coupled mode (ringing there), exactly, for any excitation. Column `[H·u]` built from the
+//! *recorded* command and low-passed as the residual was (`Trajectory::lowpass_hz`, so
+//! overall a band-pass around the mode); amplitude `−J2/J1` (dimensionless, negative for a
+//! motor-side sensor). The mode frequency and damping are shapes (`Shape::compliance_frequency`,
+//! `Shape::compliance_damping`); K and c follow from them and the inertias. Far above the
+//! excitation the column tends to `u⁽²⁾/ω²` — the classic `−(J2²/K)·q⁽⁴⁾` term. Thesis-notes
+//! §7.10/7.11: ringing at the transmission mode after steps, motor and load velocities differ
+//! at that mode; a soft zone makes that frequency depend on load.
 
-use super::signal::{derivative, moving_average};
+use super::signal::{highpass2, log_space};
 use super::{EffectLaws, Shape, Trajectory};
 
 /// Stiffness used when backlash is present without a compliance effect (N·m/rad).
@@ -25,12 +29,12 @@ pub const DEFAULT_STIFFNESS: f64 = 1.0e4;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "transmission spring KT with soft zone (k_soft up to a knee torque, \
-     then k_hard); ringing at the transmission mode, residual ∝ d²a/dt², resonance frequency \
-     that varies with load";
+     then k_hard); ringing at the transmission mode, residual is the command high-passed at the \
+     coupled mode (ringing there), resonance frequency that varies with load";
 
-/// Amplitude of the fingerprint column: −J_far²/K seen from the motor side (kg·m²·s²), a
-/// derived quantity, not a model parameter.
-pub const AMPLITUDES: &[&str] = &["inertia_sq_over_stiffness"];
+/// Amplitude of the fingerprint column: −J2/J1 seen from a motor-side sensor (dimensionless),
+/// a derived quantity, not a model parameter.
+pub const AMPLITUDES: &[&str] = &["inertia_ratio"];
 
 /// Admissible sign of the first amplitude: negative for a motor-side position sensor.
 pub const SIGN: Option<f64> = Some(-1.0);
@@ -88,23 +92,95 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     s.damping = p.damping.value;
 }
 
-/// `[d²a/dt²]`, each differentiation preceded by a moving average.
+/// `[lowpass(H·u)]`, H the second-order high-pass at the shape's mode (zeros for records too
+/// short to carry a mode: the effect has no memoryless part).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
-    let a = moving_average(&traj.acceleration[..n], shape.smoothing);
-    let j = moving_average(&derivative(&a, traj.dt), shape.smoothing);
-    vec![derivative(&j, traj.dt)]
+    if n < 8 || traj.dt <= 0.0 {
+        return vec![vec![0.0; n]];
+    }
+    let (u, window) = traj.recorded_input();
+    let hp = highpass2(
+        u,
+        shape.compliance_frequency,
+        shape.compliance_damping,
+        1.0 / traj.dt,
+    );
+    vec![traj.lowpass(&hp)[window].to_vec()]
 }
 
-/// Smoothing lengths 1, 5, 11 samples.
-pub fn shape_grid(_traj: &Trajectory) -> Vec<Shape> {
-    [1, 5, 11]
-        .into_iter()
-        .map(|smoothing| Shape {
-            smoothing,
-            ..Shape::default()
-        })
-        .collect()
+/// Lowest mode frequency searched (Hz): below it a transmission mode is inside the motion band
+/// and no longer a "missing effect" of a rigid model.
+pub const MIN_FREQUENCY: f64 = 2.0;
+
+/// Mode frequencies log-spaced (steps of ≈ 25 %) from [`MIN_FREQUENCY`] to the lower of 0.4× the
+/// sample rate and 2× the residual’s low-pass, each at a light (0.05) and a moderate (0.3)
+/// damping ratio; [`refine_grid`] narrows the best one down.
+pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
+    let hi = top_frequency(traj);
+    let lo = MIN_FREQUENCY.min(0.5 * hi);
+    let count = (((hi / lo).ln() / 1.25f64.ln()).ceil() as usize).max(2);
+    let mut out = Vec::new();
+    for f in log_space(lo, hi, count) {
+        for zeta in [0.05, 0.3] {
+            out.push(Shape {
+                compliance_frequency: f,
+                compliance_damping: zeta,
+                ..Shape::default()
+            });
+        }
+    }
+    out
+}
+
+/// Highest mode frequency of [`shape_grid`] (Hz): the lower of 0.4× the sample rate and 2× the
+/// residual's low-pass.
+pub fn top_frequency(traj: &Trajectory) -> f64 {
+    let fs = if traj.dt > 0.0 { 1.0 / traj.dt } else { 1.0e3 };
+    let mut hi = 0.4 * fs;
+    if traj.lowpass_hz > 0.0 {
+        hi = hi.min(2.0 * traj.lowpass_hz);
+    }
+    hi
+}
+
+/// A mode is resolved when it lies below the top of the grid: a search that ends at or above
+/// the top has found a mode above the record's bandwidth, whose frequency the record does not
+/// identify (the column is then `≈ u⁽²⁾/ω²`, any ω above the band fits).
+pub fn resolved(traj: &Trajectory, shape: &Shape) -> bool {
+    shape.compliance_frequency < top_frequency(traj) * (1.0 - 1e-9)
+}
+
+/// Finer frequencies (±15 % in 5 % steps) and damping ratios around `best`.
+pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+    let mut out = Vec::new();
+    for i in -3i32..=3 {
+        let f = best.compliance_frequency * 1.05f64.powi(i);
+        for zeta in [0.03, 0.05, 0.1, 0.2, 0.4] {
+            out.push(Shape {
+                compliance_frequency: f,
+                compliance_damping: zeta,
+                ..best.clone()
+            });
+        }
+    }
+    out
+}
+
+/// Stiffness and damping of the spring from the mode (`Shape::compliance_frequency`, Hz, and
+/// `compliance_damping`) and the inertias on each side: K = ω²·J1·J2/(J1 + J2),
+/// c = 2ζω·J1·J2/(J1 + J2).
+pub fn spring_from_mode(frequency: f64, damping: f64, j1: f64, j2: f64) -> (f64, f64) {
+    let w = std::f64::consts::TAU * frequency;
+    let jr = j1 * j2 / (j1 + j2);
+    (w * w * jr, 2.0 * damping * w * jr)
+}
+
+/// Inverse of [`spring_from_mode`]: (frequency in Hz, damping ratio) of the coupled mode.
+pub fn mode_from_spring(k: f64, c: f64, j1: f64, j2: f64) -> (f64, f64) {
+    let jr = j1 * j2 / (j1 + j2);
+    let w = (k / jr).sqrt();
+    (w / std::f64::consts::TAU, c / (2.0 * w * jr))
 }
 
 /// Elastic energy of an engaged deflection `e` for the soft-zone spring (J): the integral of

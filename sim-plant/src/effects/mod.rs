@@ -48,6 +48,18 @@ pub struct Trajectory<'a> {
     pub velocity: &'a [f64],
     /// Acceleration.
     pub acceleration: &'a [f64],
+    /// The input as recorded, before any filtering or reconstruction (`input` may be a
+    /// smoothed or motion-based stand-in for it). Fingerprints that are a *dynamic* function of
+    /// the command (compliance, quantisation) are built from it. It may extend beyond the
+    /// trajectory (the whole record, of which the trajectory is a window starting at
+    /// `raw_offset`), so that filters see the command's history and not a start-up transient.
+    pub raw_input: &'a [f64],
+    /// Index in `raw_input` of the trajectory's first sample.
+    pub raw_offset: usize,
+    /// Cut-off (Hz) of the zero-phase low-pass ([`signal::filtfilt`]) the residual went through
+    /// (the smoothing differentiator's); 0 = none. Fingerprints built from `raw_input` apply it
+    /// so that they see the bandwidth the residual saw.
+    pub lowpass_hz: f64,
 }
 
 impl Trajectory<'_> {
@@ -58,6 +70,26 @@ impl Trajectory<'_> {
             .min(self.position.len())
             .min(self.velocity.len())
             .min(self.acceleration.len())
+    }
+
+    /// `x` low-passed as the residual was (see [`Trajectory::lowpass_hz`]).
+    pub fn lowpass(&self, x: &[f64]) -> Vec<f64> {
+        if self.lowpass_hz > 0.0 && self.dt > 0.0 {
+            signal::filtfilt(x, self.lowpass_hz, 1.0 / self.dt)
+        } else {
+            x.to_vec()
+        }
+    }
+
+    /// The recorded input and the window of it the trajectory covers: `raw_input` (the whole
+    /// record) if it covers the trajectory at `raw_offset`, else `input` itself.
+    pub fn recorded_input(&self) -> (&[f64], std::ops::Range<usize>) {
+        let n = self.len();
+        if self.raw_input.len() >= self.raw_offset + n {
+            (self.raw_input, self.raw_offset..self.raw_offset + n)
+        } else {
+            (&self.input[..n], 0..n)
+        }
     }
 
     /// Whether the trajectory has no samples.
@@ -120,6 +152,10 @@ pub struct Shape {
     /// Compliance, delay: length (samples) of the moving average that smooths signals before
     /// they are differentiated.
     pub smoothing: usize,
+    /// Compliance: frequency (Hz) of the coupled transmission mode, ω = √(K·(1/J1 + 1/J2)).
+    pub compliance_frequency: f64,
+    /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
+    pub compliance_damping: f64,
 }
 
 impl Default for Shape {
@@ -137,6 +173,8 @@ impl Default for Shape {
             quantum: 0.0,
             delay: 0.0,
             smoothing: 5,
+            compliance_frequency: 20.0,
+            compliance_damping: 0.05,
         }
     }
 }
@@ -296,6 +334,58 @@ registry! {
     Quantization => quantization,
 }
 
+/// Shapes near `best` (the winner of [`shape_grid`]) worth a second, finer look: a local grid
+/// for effects whose fingerprint is sharp in its shape (ripple period, compliance mode,
+/// quantiser step); empty for the others. See [`shape_search`].
+pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+    match kind {
+        EffectKind::Ripple => ripple::refine_grid(traj, best),
+        EffectKind::Compliance => compliance::refine_grid(traj, best),
+        EffectKind::Quantization => quantization::refine_grid(traj, best),
+        _ => Vec::new(),
+    }
+}
+
+/// Whether the record resolves `shape` of `kind`: false when a shape search ends at the edge
+/// of what the record can identify — a compliance mode at or above the top of its grid (above
+/// the residual's bandwidth only `J2/(J1·ω²)` is identifiable, not the mode, and a stiff
+/// transmission there is not a missing effect at this bandwidth). True for other effects.
+pub fn resolved(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> bool {
+    match kind {
+        EffectKind::Compliance => compliance::resolved(traj, shape),
+        _ => true,
+    }
+}
+
+/// Best shape of `kind` by `score` (higher is better; `None` = not testable at that shape):
+/// scans [`shape_grid`], then [`refine_grid`] around the best grid point. Returns the best
+/// shape, its score and the number of shapes scored (the search's multiplicity).
+pub fn shape_search(
+    kind: EffectKind,
+    traj: &Trajectory,
+    mut score: impl FnMut(&Shape) -> Option<f64>,
+) -> Option<(Shape, f64, usize)> {
+    let mut best: Option<(Shape, f64)> = None;
+    let mut tried = 0;
+    let mut consider = |s: Shape, best: &mut Option<(Shape, f64)>| {
+        tried += 1;
+        if let Some(v) = score(&s) {
+            if best.as_ref().is_none_or(|b| v > b.1) {
+                *best = Some((s, v));
+            }
+        }
+    };
+    for s in shape_grid(kind, traj) {
+        consider(s, &mut best);
+    }
+    if let Some((b, _)) = best.clone() {
+        for s in refine_grid(kind, traj, &b) {
+            consider(s, &mut best);
+        }
+    }
+    best.map(|(s, v)| (s, v, tried))
+}
+
 /// The default shape for `kind` given a trajectory: the middle of its [`shape_grid`].
 pub fn default_shape(kind: EffectKind, traj: &Trajectory) -> Shape {
     let mut grid = shape_grid(kind, traj);
@@ -354,6 +444,9 @@ mod tests {
             position: &q,
             velocity: &v,
             acceleration: &a,
+            raw_input: &u,
+            raw_offset: 0,
+            lowpass_hz: 0.0,
         };
         for k in EffectKind::ALL {
             let grid = shape_grid(k, &traj);

@@ -5,9 +5,13 @@
 //! regressor, so this effect covers the input path.
 //!
 //! Dynamics: applied = `u − g·(u − Δ·round(u/Δ))` (g = 1: fully quantised).
-//! Fingerprint: `R = u − applied = g·(u − Q_Δ(u))`: column `[u − Q_Δ(u)]`, amplitude g.
+//! Fingerprint: `R = u − applied = g·(u − Q_Δ(u))`: column `[u − Q_Δ(u)]` — the recorded
+//! command's own quantisation sawtooth — low-passed as the residual was
+//! (`Trajectory::lowpass_hz`), amplitude g. Noise on the recorded command does not bias the
+//! test: the sawtooth's mean slope over a period is zero, so (Stein's lemma) it is uncorrelated
+//! with additive Gaussian noise once the command spans several steps.
 
-use super::signal::positive_or;
+use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
 
 /// One-line description and fingerprint.
@@ -39,31 +43,60 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     laws.actuator.quant_gain = p.gain.value;
 }
 
-/// `[u − Q_Δ(u)]` (zeros when Δ = 0).
+/// `[lowpass(u − Q_Δ(u))]` of the recorded command (zeros when Δ = 0).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    let u = &traj.input[..traj.len()];
+    let (u, window) = traj.recorded_input();
     let d = shape.quantum;
     vec![if d > 0.0 {
-        u.iter().map(|&u| error(u, d)).collect()
+        let saw: Vec<f64> = u.iter().map(|&u| error(u, d)).collect();
+        traj.lowpass(&saw)[window].to_vec()
     } else {
-        vec![0.0; u.len()]
+        vec![0.0; window.len()]
     }]
 }
 
-/// The smallest non-zero step between consecutive inputs, ×1, ×2, ×5, ×10.
+/// Sample-to-sample scatter of the recorded command (RMS of the second difference / √6): the
+/// scale of its noise and dither, below which a quantiser leaves nothing to see.
+fn scatter(u: &[f64]) -> f64 {
+    let m = u.len().saturating_sub(2);
+    if m == 0 {
+        return 0.0;
+    }
+    let s: f64 = u
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2))
+        .sum();
+    (s / m as f64 / 6.0).sqrt()
+}
+
+/// Steps log-spaced (≈ 6 % apart) from 0.3× the command's sample-to-sample scatter (or a
+/// hundredth of its range if smaller) to a third of its range (it must span a few steps). The sawtooth of
+/// a wrong step decorrelates quickly, hence the fine spacing; [`refine_grid`] polishes it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    let u = &traj.input[..traj.len()];
-    let est = u
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| *d > 1e-12)
-        .fold(f64::INFINITY, f64::min);
-    let est = positive_or(est, 1e-3 * positive_or(traj.max_abs_input(), 1.0));
-    [1.0, 2.0, 5.0, 10.0]
+    let (u, window) = traj.recorded_input();
+    let u = &u[window];
+    let range = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let range = positive_or(range, 1.0);
+    let lo = positive_or(scatter(u), 1e-3 * range);
+    let lo = (0.3 * lo).min(0.01 * range);
+    let hi = (range / 3.0).max(lo);
+    let count = (((hi / lo).ln() / 1.06f64.ln()).ceil() as usize).max(1);
+    log_space(lo, hi, count)
         .into_iter()
-        .map(|m| Shape {
-            quantum: m * est,
+        .map(|quantum| Shape {
+            quantum,
             ..Shape::default()
+        })
+        .collect()
+}
+
+/// Steps within ±3 % of `best`, 1 % apart.
+pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+    (-3i32..=3)
+        .filter(|&i| i != 0)
+        .map(|i| Shape {
+            quantum: best.quantum * 1.01f64.powi(i),
+            ..best.clone()
         })
         .collect()
 }

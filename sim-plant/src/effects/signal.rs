@@ -76,6 +76,111 @@ pub fn positive_or(x: f64, fallback: f64) -> f64 {
     }
 }
 
+/// One second-order section (direct form II transposed).
+#[derive(Debug, Clone, Copy)]
+struct Biquad {
+    b0: f64,
+    b1: f64,
+    b2: f64,
+    a1: f64,
+    a2: f64,
+}
+
+impl Biquad {
+    /// Butterworth-section low-pass (bilinear transform), cut-off `fc`, quality `q`.
+    fn lowpass(fc: f64, fs: f64, q: f64) -> Self {
+        let k = (std::f64::consts::PI * fc / fs).tan();
+        let norm = 1.0 / (1.0 + k / q + k * k);
+        let b0 = k * k * norm;
+        Biquad {
+            b0,
+            b1: 2.0 * b0,
+            b2: b0,
+            a1: 2.0 * (k * k - 1.0) * norm,
+            a2: (1.0 - k / q + k * k) * norm,
+        }
+    }
+
+    /// `s²/(s² + 2ζω·s + ω²)` (bilinear transform prewarped at ω = 2π·`f0`).
+    fn highpass(f0: f64, zeta: f64, fs: f64) -> Self {
+        let k = (std::f64::consts::PI * f0 / fs).tan();
+        let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
+        Biquad {
+            b0: norm,
+            b1: -2.0 * norm,
+            b2: norm,
+            a1: 2.0 * (k * k - 1.0) * norm,
+            a2: (1.0 - 2.0 * zeta * k + k * k) * norm,
+        }
+    }
+
+    /// Filter in place, starting from the steady state of the first sample.
+    fn run(&self, x: &mut [f64]) {
+        let Some(&c) = x.first() else { return };
+        // Steady state for a constant input c: output y = c·Σb/(1 + Σa).
+        let g = (self.b0 + self.b1 + self.b2) / (1.0 + self.a1 + self.a2);
+        let y0 = g * c;
+        let mut z2 = self.b2 * c - self.a2 * y0;
+        let mut z1 = self.b1 * c - self.a1 * y0 + z2;
+        for v in x.iter_mut() {
+            let xi = *v;
+            let y = self.b0 * xi + z1;
+            z1 = self.b1 * xi - self.a1 * y + z2;
+            z2 = self.b2 * xi - self.a2 * y;
+            *v = y;
+        }
+    }
+}
+
+/// Zero-phase 4th-order Butterworth low-pass of `x` (sample rate `fs`, cut-off `fc`, Hz):
+/// forward–backward, odd-reflection padding. The forward–backward pass squares the magnitude
+/// response (−6 dB at `fc`). `fc` ≤ 0 or ≥ `fs`/2 (or fewer than 3 samples): `x` unchanged.
+///
+/// This is the workbench's smoothing differentiator's filter: fingerprints built from the
+/// recorded input apply it (`Trajectory::lowpass_hz`) so that they see the bandwidth the
+/// residual saw.
+pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
+    let n = x.len();
+    if n < 3 || !(fc > 0.0 && fc < fs / 2.0) {
+        return x.to_vec();
+    }
+    let secs = [
+        Biquad::lowpass(fc, fs, 0.541_196_100_146_197),
+        Biquad::lowpass(fc, fs, 1.306_562_964_876_376_6),
+    ];
+    let pad = ((3.0 * fs / fc).ceil() as usize + 12).min(n - 1);
+    // Odd reflection about the end points keeps value and slope continuous.
+    let mut buf = Vec::with_capacity(n + 2 * pad);
+    for i in (1..=pad).rev() {
+        buf.push(2.0 * x[0] - x[i]);
+    }
+    buf.extend_from_slice(x);
+    for i in 1..=pad {
+        buf.push(2.0 * x[n - 1] - x[n - 1 - i]);
+    }
+    for s in &secs {
+        s.run(&mut buf);
+    }
+    buf.reverse();
+    for s in &secs {
+        s.run(&mut buf);
+    }
+    buf.reverse();
+    buf.drain(..pad);
+    buf.truncate(n);
+    buf
+}
+
+/// Causal second-order high-pass `s²/(s² + 2ζω·s + ω²)`, ω = 2π·`f0` (Hz), sample rate `fs`,
+/// started at rest for the first sample's level (a constant input gives zeros).
+pub fn highpass2(x: &[f64], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
+    let mut y = x.to_vec();
+    if f0 > 0.0 && f0 < fs / 2.0 {
+        Biquad::highpass(f0, zeta.max(1e-3), fs).run(&mut y);
+    }
+    y
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -92,5 +197,34 @@ mod tests {
         assert_eq!(m, vec![1.5, 2.0, 3.0, 4.0, 4.5]);
         let g = log_space(1.0, 100.0, 3);
         assert!((g[1] - 10.0).abs() < 1e-12 && (g[2] - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn filters_pass_and_stop_what_they_should() {
+        let fs = 1000.0;
+        let tone = |f: f64| -> Vec<f64> {
+            (0..4000)
+                .map(|i| (std::f64::consts::TAU * f * i as f64 / fs).sin())
+                .collect()
+        };
+        let rms = |x: &[f64]| (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
+        // Low-pass: 2 Hz through, 200 Hz out, no lag.
+        let lo = tone(2.0);
+        let y = filtfilt(&lo, 40.0, fs);
+        assert!(y[200..3800]
+            .iter()
+            .zip(&lo[200..3800])
+            .all(|(a, b)| (a - b).abs() < 1e-3));
+        assert!(rms(&filtfilt(&tone(200.0), 40.0, fs)[200..3800]) < 1e-3);
+        // High-pass at 20 Hz: 2 Hz attenuated by ≈ (2/20)², 200 Hz through.
+        let r = rms(&highpass2(&lo, 20.0, 0.05, fs)[2000..]) / rms(&lo[2000..]);
+        assert!((r - 0.01).abs() < 0.002, "{r}");
+        let hi = tone(200.0);
+        let r = rms(&highpass2(&hi, 20.0, 0.05, fs)[2000..]) / rms(&hi[2000..]);
+        assert!((r - 1.0).abs() < 0.02, "{r}");
+        // A constant gives zeros.
+        assert!(highpass2(&[3.0; 50], 20.0, 0.05, fs)
+            .iter()
+            .all(|v| v.abs() < 1e-12));
     }
 }

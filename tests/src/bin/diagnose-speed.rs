@@ -19,6 +19,7 @@ fn main() {
     let n = rec.len();
     let mut best = f64::INFINITY;
     let mut verdict = String::new();
+    let mut table = String::new();
     for _ in 0..3 {
         let t0 = Instant::now();
         let p = Prepared::new(&rec, None);
@@ -27,11 +28,15 @@ fn main() {
         let d = diagnose(&m, &p, &Options::default());
         best = best.min(t0.elapsed().as_secs_f64());
         verdict = d.verdict.text.clone();
+        table = d.to_text();
     }
     println!(
         "diagnose on N = {n} samples, {} library effects: {best:.3} s (best of 3)",
         sim_plant::effects::EffectKind::ALL.len()
     );
+    if std::env::var_os("DIAGNOSE_TABLE").is_some() {
+        println!("{table}");
+    }
     println!("verdict: {verdict}");
     if best > 1.0 {
         println!("SLOWER than the 1 s budget");

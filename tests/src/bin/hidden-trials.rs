@@ -2,8 +2,10 @@
 //! null false-alarm rate, refit-to-noise-floor rate, pair (`--auto`) rate.
 //!
 //! ```sh
-//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED] [FAMILIES]
 //! ```
+//! `FAMILIES` (comma-separated names) restricts the single-effect trials to those families and
+//! skips the pair trials; the null trials always run.
 //! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
 
 use std::collections::BTreeMap;
@@ -15,6 +17,15 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let trials: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(200);
     let seed0: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
+    // Optional third argument: comma-separated families to run (nulls always run; pairs only
+    // without a filter), e.g. `hidden-trials 12 1 compliance,quantization`.
+    let only: Option<Vec<String>> = args
+        .next()
+        .map(|s| s.split(',').map(|x| x.trim().to_string()).collect());
+    let selected = |f: &Family| {
+        only.as_ref()
+            .is_none_or(|o| o.iter().any(|n| n == f.name()))
+    };
     let rhos = [0.5, 1.0, 2.0, 4.0];
     // `hidden-trials one FAMILY SEED RHO`: run and print a single trial (debugging aid).
     if std::env::args().nth(1).as_deref() == Some("one") {
@@ -39,6 +50,9 @@ fn main() {
     // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
     let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
     for (fi, f) in Family::ALL.iter().enumerate() {
+        if !selected(f) {
+            continue;
+        }
         for i in 0..trials {
             jobs.push((
                 0,
@@ -51,7 +65,7 @@ fn main() {
     for i in 0..trials {
         jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
     }
-    for i in 0..trials / 2 {
+    for i in 0..if only.is_some() { 0 } else { trials / 2 } {
         let (a, b) = pair_fams[i % pair_fams.len()];
         jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
     }

@@ -438,6 +438,9 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
         }
         plant = with_effect(&d, &plant, f, a, travel);
     }
+    if std::env::var_os("HIDDEN_DEBUG").is_some() {
+        eprintln!("truth: {plant:?}");
+    }
     let est = record(&plant, &d.est, &format!("hidden seed {seed} est"));
     let val = record(&plant, &d.val, &format!("hidden seed {seed} val"));
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
@@ -516,6 +519,12 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
             t.floor_est,
             d.to_text()
         );
+        if let Some(c) = d.candidates.iter().find(|c| c.effect == "compliance") {
+            eprintln!(
+                "compliance shape: f {:.1} Hz, zeta {:.2}",
+                c.shape.compliance_frequency, c.shape.compliance_damping
+            );
+        }
     }
     let mut out = Outcome {
         families: families.to_vec(),
