@@ -77,7 +77,6 @@ fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
         EffectKind::Stribeck => Some(s.stribeck_velocity),
         EffectKind::Ripple => Some(s.ripple_period),
         EffectKind::Deadband => Some(s.deadband_width),
-        EffectKind::Delay => Some(s.delay),
         _ => None,
     }
 }
@@ -87,8 +86,156 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
         EffectKind::Stribeck => s.stribeck_velocity = v,
         EffectKind::Ripple => s.ripple_period = v,
         EffectKind::Deadband => s.deadband_width = v,
-        EffectKind::Delay => s.delay = v,
         _ => {}
+    }
+}
+
+/// RSS of the least-squares refit of `m` (∞ if it fails); `m` keeps the fitted amplitudes.
+fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
+    residual::refit(m, p).map_or(f64::INFINITY, |f| f.rss)
+}
+
+/// Try each shape `set(shape, x)` for `x` in `xs` on effect `e`, keep the best by LS RSS.
+/// Returns the best x and its RSS.
+fn line_search(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    xs: &[f64],
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let mut best = (f64::NAN, f64::INFINITY);
+    let mut best_model = model.clone();
+    for &x in xs {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        let r = ls_rss(&mut m, p);
+        if r < best.1 {
+            best = (x, r);
+            best_model = m;
+        }
+    }
+    *model = best_model;
+    best
+}
+
+/// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum).
+fn golden(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    (mut lo, mut hi): (f64, f64),
+    iters: usize,
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let eval = |x: f64| {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        ls_rss(&mut m, p)
+    };
+    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fa, mut fb) = (eval(a), eval(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            (b, fb) = (a, fa);
+            a = hi - g * (hi - lo);
+            fa = eval(a);
+        } else {
+            lo = a;
+            (a, fa) = (b, fb);
+            b = lo + g * (hi - lo);
+            fb = eval(b);
+        }
+    }
+    let x = if fa < fb { a } else { b };
+    line_search(model, p, e, &[x], set)
+}
+
+fn set_delay(m: &mut Model, e: usize, tau: f64) {
+    let tau = tau.max(0.0);
+    m.effects[e].shape.delay = tau;
+    if let Some(q) = m.effects[e].params.first_mut() {
+        q.value = tau;
+    }
+}
+
+/// Shape searches the least-squares refit cannot do, before Levenberg–Marquardt:
+///
+/// * **Delay**: τ by a 1-D search on the residual re-formed with the measured input actually
+///   delayed by τ (grid over 0–30 samples, then golden section; fractional delays by linear
+///   interpolation), the rest by least squares at each τ. Not the linear column
+///   (u − u(t − τs))/τs with a free amplitude: that column carries the input's own noise.
+/// * **Coulomb**: the sign's time lead (`Shape::sign_lead`) and smoothing ε, by coordinate
+///   search: dynamic friction reverses over a pre-sliding displacement, not exactly at v = 0.
+/// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step), because
+///   the RSS oscillates in the period and LM only finds the nearest minimum.
+fn search_shapes(model: &mut Model, p: &Prepared) {
+    let dt = p.dt;
+    for e in 0..model.effects.len() {
+        let entry = &model.effects[e];
+        if !entry.params.iter().any(|q| q.free) {
+            continue;
+        }
+        match entry.kind {
+            EffectKind::Delay => {
+                let grid: Vec<f64> = (0..=30).map(|k| k as f64 * dt).collect();
+                let (t0, _) = line_search(model, p, e, &grid, &set_delay);
+                let (t1, r1) = golden(model, p, e, ((t0 - dt).max(0.0), t0 + dt), 14, &set_delay);
+                // 1σ from the curvature of RSS(τ): var = 2·s²/RSS''.
+                let h = 0.25 * dt;
+                let at = |tau: f64| {
+                    let mut m = model.clone();
+                    set_delay(&mut m, e, tau);
+                    ls_rss(&mut m, p)
+                };
+                let curv = (at(t1 + h) - 2.0 * r1 + at((t1 - h).max(0.0))) / (h * h);
+                let s2 = r1 / (p.len() as f64 - model.params().len() as f64).max(1.0);
+                if let Some(q) = model.effects[e].params.first_mut() {
+                    q.sigma = Some(if curv > 0.0 {
+                        (2.0 * s2 / curv).sqrt()
+                    } else {
+                        f64::NAN
+                    });
+                }
+            }
+            EffectKind::Coulomb => {
+                let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
+                let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
+                let leads: Vec<f64> = [
+                    -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+                ]
+                .iter()
+                .map(|k| k * dt)
+                .collect();
+                let eps: Vec<f64> =
+                    sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+                        .iter()
+                        .map(|s| s.sign_epsilon)
+                        .collect();
+                line_search(model, p, e, &leads, &set_lead);
+                line_search(model, p, e, &eps, &set_eps);
+                let (l, _) = line_search(model, p, e, &leads, &set_lead);
+                golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), 8, &set_lead);
+            }
+            EffectKind::Ripple => {
+                let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
+                let step = if grid.len() > 1 {
+                    grid[1].ripple_period / grid[0].ripple_period
+                } else {
+                    1.0
+                };
+                let p0 = entry.shape.ripple_period;
+                let xs: Vec<f64> = (-10..=10)
+                    .map(|k| p0 * step.powf(k as f64 / 10.0))
+                    .collect();
+                let set_period =
+                    |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
+                line_search(model, p, e, &xs, &set_period);
+            }
+            _ => {}
+        }
     }
 }
 
@@ -104,6 +251,8 @@ pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape
 /// Refit all free parameters of a model (LS; LM over smooth shapes of free effects).
 pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     residual::refit(model, p)?;
+    search_shapes(model, p);
+    residual::refit(model, p)?;
     let lm_idx: Vec<usize> = model
         .effects
         .iter()
@@ -116,12 +265,21 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     if lm_idx.is_empty() {
         return Ok(());
     }
-    // x = [free amplitudes..., ln(shape) per LM effect]
+    // x = [free amplitudes..., ln(shape) per LM effect]; a delay's τ stays where its own
+    // search put it (see `search_shapes`).
+    let owner: Vec<Option<EffectKind>> = std::iter::once(None)
+        .chain(
+            model
+                .effects
+                .iter()
+                .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
+        )
+        .collect();
     let free: Vec<usize> = model
         .params()
         .iter()
         .enumerate()
-        .filter(|(_, q)| q.free)
+        .filter(|(i, q)| q.free && owner[*i] != Some(EffectKind::Delay))
         .map(|(i, _)| i)
         .collect();
     let mut x0: Vec<f64> = free.iter().map(|&i| model.params()[i].value).collect();

@@ -120,6 +120,11 @@ pub struct Shape {
     /// Compliance, delay: length (samples) of the moving average that smooths signals before
     /// they are differentiated.
     pub smoothing: usize,
+    /// Coulomb: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
+    /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
+    /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
+    /// to a few milliseconds (negative = lag). 0 = the static sign(v).
+    pub sign_lead: f64,
 }
 
 impl Default for Shape {
@@ -137,6 +142,7 @@ impl Default for Shape {
             quantum: 0.0,
             delay: 0.0,
             smoothing: 5,
+            sign_lead: 0.0,
         }
     }
 }

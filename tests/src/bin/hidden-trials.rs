@@ -12,7 +12,28 @@ use std::time::Instant;
 use jointlab_tests::hidden::{run, Family, Outcome};
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    // Flags (for quick iteration): `--family a,b` runs only those single-effect families (no
+    // nulls, no pairs); `--pairs-only`; `--nulls-only`.
+    let raw: Vec<String> = std::env::args().skip(1).collect();
+    let mut only: Option<Vec<String>> = None;
+    let (mut singles, mut with_nulls, mut with_pairs) = (true, true, true);
+    let mut positional = Vec::new();
+    let mut it = raw.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--family" => {
+                only = it
+                    .next()
+                    .map(|v| v.split(',').map(str::to_string).collect());
+                with_nulls = false;
+                with_pairs = false;
+            }
+            "--pairs-only" => (singles, with_nulls) = (false, false),
+            "--nulls-only" => (singles, with_pairs) = (false, false),
+            _ => positional.push(a.clone()),
+        }
+    }
+    let mut args = positional.into_iter();
     let trials: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(200);
     let seed0: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
     let rhos = [0.5, 1.0, 2.0, 4.0];
@@ -39,6 +60,13 @@ fn main() {
     // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
     let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
     for (fi, f) in Family::ALL.iter().enumerate() {
+        if !singles
+            || only
+                .as_ref()
+                .is_some_and(|o| !o.iter().any(|n| n == f.name()))
+        {
+            continue;
+        }
         for i in 0..trials {
             jobs.push((
                 0,
@@ -48,10 +76,10 @@ fn main() {
             ));
         }
     }
-    for i in 0..trials {
+    for i in 0..if with_nulls { trials } else { 0 } {
         jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
     }
-    for i in 0..trials / 2 {
+    for i in 0..if with_pairs { trials / 2 } else { 0 } {
         let (a, b) = pair_fams[i % pair_fams.len()];
         jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
     }
@@ -173,7 +201,7 @@ fn main() {
         "\nnull trials: {} of {} flagged a missing effect (false-alarm rate {:.1} %)",
         fa,
         nulls.len(),
-        100.0 * fa as f64 / nulls.len() as f64
+        100.0 * fa as f64 / nulls.len().max(1) as f64
     );
     let mut fa_by: BTreeMap<String, usize> = BTreeMap::new();
     for o in nulls.iter().filter(|o| !o.null_ok()) {

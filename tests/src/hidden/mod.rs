@@ -422,9 +422,12 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
             Family::Quantization => 3.5 * floor_est,
         };
         // Two secant steps on the amplitude for the target strength (ρ is ~linear in it).
+        // Each effect is calibrated on the effect-free plant, *on its own*: calibrating the
+        // second of a pair on a plant that already carries the first would scale the pair's
+        // combined strength to the target and leave the second effect far weaker.
         let mut a = a0;
         for _ in 0..2 {
-            let p = with_effect(&d, &plant, f, a, travel);
+            let p = with_effect(&d, &base, f, a, travel);
             let r = record(&p, &d.est, "calib");
             let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
             let rr = rho(b, floor_est);
