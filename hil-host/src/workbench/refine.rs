@@ -395,6 +395,9 @@ pub struct AutoStep {
     pub step: usize,
     /// Effect added at this step.
     pub added: Option<String>,
+    /// Effect this step's addition replaced (the closing swap pass of `--auto`), if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub replaced: Option<String>,
     /// Score after the step (estimation data).
     pub score: Score,
     /// Score on validation data.
@@ -426,34 +429,163 @@ pub fn auto(
     let mut steps = vec![AutoStep {
         step: 0,
         added: None,
+        replaced: None,
         score: score(model, p),
         validation: validation.map(|v| score(model, v)),
         p_value: None,
         verdict: "start".into(),
     }];
+    let start_len = model.effects.len();
+    let mut seen: Vec<diagnose::Candidate> = Vec::new();
     loop {
         let d = diagnose::diagnose(model, p, opts);
+        for c in d.candidates.iter().filter(|c| c.significant) {
+            if !seen.iter().any(|s| s.effect == c.effect) {
+                seen.push(c.clone());
+            }
+        }
         let Some(name) = d.verdict.add.clone() else {
+            if let Some((added, replaced)) = swap_pass(model, p, start_len, &seen)? {
+                steps.push(AutoStep {
+                    step: steps.len(),
+                    added: Some(added.clone()),
+                    replaced: Some(replaced.clone()),
+                    score: score(model, p),
+                    validation: validation.map(|v| score(model, v)),
+                    p_value: None,
+                    verdict: format!("{added} replaces {replaced} (lower BIC)"),
+                });
+                let last = diagnose::diagnose(model, p, opts);
+                return Ok(AutoRun { steps, last });
+            }
             return Ok(AutoRun { steps, last: d });
         };
         if steps.len() > max_steps {
             return Ok(AutoRun { steps, last: d });
         }
-        let c = d
-            .candidates
-            .iter()
-            .find(|c| c.effect == name)
-            .expect("winner is a candidate");
-        let kind = c.kind.expect("kind");
-        model.add(kind, c.shape.clone());
-        refit_all(model, p)?;
+        let (c, fitted) = choose(model, p, &d, &name)?;
+        *model = fitted;
         steps.push(AutoStep {
             step: steps.len(),
-            added: Some(name),
+            added: Some(c.effect.clone()),
+            replaced: None,
             score: score(model, p),
             validation: validation.map(|v| score(model, v)),
             p_value: Some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
     }
+}
+
+/// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
+/// Stribeck velocity, dead-zone width, backlash width, quantum).
+fn spent_params(kind: EffectKind, df: usize) -> usize {
+    df + match kind {
+        EffectKind::Ripple
+        | EffectKind::Stribeck
+        | EffectKind::Deadband
+        | EffectKind::Backlash
+        | EffectKind::Quantization
+        | EffectKind::Cogging => 1,
+        _ => 0,
+    }
+}
+
+/// Which significant candidate `--auto` adds: the diagnosis ranks by the error reduction at a
+/// grid shape, without shape refinement and without charging for parameters. Between the
+/// leading significant candidates (at most three), each is added and fully refitted, and the
+/// one with the lowest BIC, n·ln(RSS/n) + k·ln n, wins — the one-column effect when two
+/// explain the residual comparably (gravity vs ripple, Coulomb vs asymmetry).
+fn choose(
+    model: &Model,
+    p: &Prepared,
+    d: &Diagnosis,
+    verdict: &str,
+) -> Result<(diagnose::Candidate, Model), fit::FitError> {
+    let n = p.len() as f64;
+    let spent = |c: &diagnose::Candidate| c.kind.map_or(usize::MAX, |k| spent_params(k, c.df));
+    let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
+        return Err(fit::FitError::NonFinite);
+    };
+    // Only simpler (or equally simple) alternatives may displace the verdict: BIC's penalty
+    // is too light to stop a flexible, input-based fingerprint from fitting what two true
+    // effects leave together.
+    let mut pool: Vec<&diagnose::Candidate> = vec![top];
+    pool.extend(
+        d.candidates
+            .iter()
+            .filter(|c| c.significant && c.effect != verdict && spent(c) <= spent(top))
+            .take(2),
+    );
+    let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
+    for c in pool {
+        let kind = c.kind.expect("kind");
+        let mut m = model.clone();
+        m.add(kind, c.shape.clone());
+        refit_all(&mut m, p)?;
+        let rss: f64 = residual::equation_error(&m, p)
+            .residual
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        let bic = n * (rss / n).max(1e-300).ln() + spent_params(kind, c.df) as f64 * n.ln();
+        if best.as_ref().is_none_or(|b| bic < b.0) {
+            best = Some((bic, c.clone(), m));
+        }
+    }
+    let (_, c, m) = best.expect("the verdict is a candidate");
+    Ok((c, m))
+}
+
+/// BIC of a fitted model on `p`: n·ln(RSS/n) + k·ln n, k = inertia + every effect's
+/// [`spent_params`].
+fn bic(m: &Model, p: &Prepared) -> f64 {
+    let n = p.len() as f64;
+    let rss: f64 = residual::equation_error(m, p)
+        .residual
+        .iter()
+        .map(|v| v * v)
+        .sum();
+    let k: usize = 1 + m
+        .effects
+        .iter()
+        .map(|e| spent_params(e.kind, e.params.len()))
+        .sum::<usize>();
+    n * (rss / n).max(1e-300).ln() + k as f64 * n.ln()
+}
+
+/// The closing swap pass of `--auto`: greedy addition can take an effect whose columns span
+/// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb), and
+/// the second true one then adds nothing new. Each effect `--auto` added is tried replaced by
+/// each other candidate that was significant at some step; the replacement with the lowest BIC
+/// is kept if it beats the current model. Returns (added, replaced) names.
+fn swap_pass(
+    model: &mut Model,
+    p: &Prepared,
+    start_len: usize,
+    seen: &[diagnose::Candidate],
+) -> Result<Option<(String, String)>, fit::FitError> {
+    let mut best: Option<(f64, Model, String, String)> = None;
+    let current = bic(model, p);
+    for i in start_len..model.effects.len() {
+        for c in seen {
+            let Some(kind) = c.kind else { continue };
+            let e = &model.effects[i];
+            if model.has(kind) || spent_params(kind, c.df) > spent_params(e.kind, e.params.len()) {
+                continue;
+            }
+            let mut m = model.clone();
+            let old = m.effects.remove(i).kind;
+            m.add(kind, c.shape.clone());
+            refit_all(&mut m, p)?;
+            let b = bic(&m, p);
+            if b < current && best.as_ref().is_none_or(|x| b < x.0) {
+                best = Some((b, m, c.effect.clone(), old.name().to_string()));
+            }
+        }
+    }
+    Ok(best.map(|(_, m, added, replaced)| {
+        *model = m;
+        (added, replaced)
+    }))
 }

@@ -537,7 +537,17 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
         2 => {
             let mut m = model.clone();
             let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).ok()?;
-            out.auto_added = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+            // What the final model holds beyond the start (a swap may have replaced one).
+            out.auto_added = m.effects[model.effects.len()..]
+                .iter()
+                .map(|e| e.kind.name().to_string())
+                .collect();
+            if std::env::var_os("HIDDEN_DEBUG").is_some() {
+                for s in &run.steps {
+                    eprintln!("step {}: {:?} rms {:.4e}", s.step, s.added, s.score.rms);
+                }
+                eprintln!("last:\n{}", run.last.to_text());
+            }
             out.val_ratio = run
                 .steps
                 .last()
