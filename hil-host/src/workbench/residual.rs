@@ -150,11 +150,17 @@ fn instrument(p: &Prepared) -> Vec<f64> {
 /// a *nonlinear* function of the motion (a sign at each reversal, a short-period ripple)
 /// reaches the residual band-limited; its column must be too, or every sharp edge leaves a
 /// residual spike. Columns already built from filtered signals (v, derivatives of the filtered
-/// position, the instrument) and constants are left as they are.
+/// position, the instrument: delay, dead zone, quantiser) and constants are left as they are
+/// (filtering the instrument-based dead-zone columns again made them fit null records).
 fn filtered(kind: EffectKind) -> bool {
     !matches!(
         kind,
-        EffectKind::Offset | EffectKind::Viscous | EffectKind::Compliance | EffectKind::Delay
+        EffectKind::Offset
+            | EffectKind::Viscous
+            | EffectKind::Compliance
+            | EffectKind::Delay
+            | EffectKind::Deadband
+            | EffectKind::Quantization
     )
 }
 
