@@ -2,11 +2,12 @@
 //! matrix is `cargo run --release -p jointlab-tests --bin hidden-trials`).
 //!
 //! Trial counts here: 3 per family at target ρ = 2 for the six families that currently meet
-//! the bar (offset, coulomb, asymmetry, ripple, gravity, delay), 10 null trials, 2
-//! pair trials for `--auto`. Seeds are fixed and consecutive (not picked); each group allows
-//! at most the misses stated in its assertion. Families that do NOT yet meet the bar
-//! (stribeck, backlash, compliance, quantization; the refit-to-noise-floor of Coulomb, gravity and delay) are measured
-//! by the bench binary and listed in docs/workbench.md — they are not asserted here.
+//! the bar (offset, coulomb, asymmetry, ripple, gravity, delay: rank 1; refit to the
+//! noise floor for all but gravity), 10 null trials, 3 pair trials for `--auto` (coulomb + offset,
+//! gravity + asymmetry, offset + delay). Seeds are fixed and consecutive (not picked); each
+//! group allows at most the misses stated in its assertion. Families that do NOT yet meet the
+//! bar (stribeck, backlash, compliance, quantization) are measured by the bench binary and
+//! listed in docs/workbench.md — they are not asserted here.
 //!
 //! Run in release (about 30–60 s on 2 cores):
 //! `cargo test --release -p jointlab-tests --test workbench_hidden`
@@ -57,11 +58,14 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
             f.name(),
             out.len()
         );
-        if matches!(f, Family::Offset | Family::Asymmetry | Family::Ripple) {
-            // Refit-to-noise-floor is asserted only where the bench mostly meets it (offset and
-            // asymmetry 100 %, ripple 81.5 %, one miss allowed): static Coulomb cannot
-            // represent LuGre pre-sliding (38 %), the delay refit reaches 20 % and gravity
-            // 96 %; all measured by the bench (40 per family, real library), docs/workbench.md.
+        if !matches!(f, Family::Gravity) {
+            // Refit-to-noise-floor, asserted for the five families where the bench meets it
+            // (40 per family, docs/workbench.md): band-limited nonlinear columns, the Coulomb
+            // sign lead, the delay fitted on the delayed input and the fine ripple period took
+            // Coulomb, delay and ripple there. One miss allowed per family. Not gravity: its
+            // estimation refit reaches the floor, but on these seeds the validation record
+            // covers angles the estimation record did not, and a short-travel sin/cos fit
+            // extrapolates (2 of 3 above 1.1·floor here; see the bench for the rate).
             let fit_ok = out.iter().filter(|o| o.val_ratio <= 1.1).count();
             assert!(
                 fit_ok + 1 >= out.len(),
@@ -94,7 +98,12 @@ fn auto_finds_two_hidden_effects() {
         90_001..90_002,
         2.0,
     ));
-    assert_eq!(out.len(), 2);
+    out.extend(trials(
+        &[Family::Offset, Family::Delay],
+        90_002..90_003,
+        2.0,
+    ));
+    assert_eq!(out.len(), 3);
     for o in &out {
         println!(
             "hidden {:?} → --auto added {:?}",

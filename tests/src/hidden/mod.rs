@@ -533,6 +533,15 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
             let mut m = model.clone();
             let r = refine::fit_add(&mut m, &pe, Some(families[0].kind()), Some(&pv)).ok()?;
             out.val_ratio = r.after_validation.expect("validation").rms / t.floor_val;
+            if std::env::var_os("HIDDEN_DEBUG").is_some() {
+                eprintln!(
+                    "fit --add {}: estimation RMS/floor {:.3}, validation {:.3}; {:?}",
+                    families[0].name(),
+                    r.after.rms / t.floor_est,
+                    out.val_ratio,
+                    r.params
+                );
+            }
         }
         2 => {
             let mut m = model.clone();
