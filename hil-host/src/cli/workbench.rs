@@ -259,6 +259,7 @@ fn auto_text(run: &AutoRun) -> String {
             match (&st.added, &st.replaced) {
                 (Some(a), Some(r)) => format!("{a} (for {r})"),
                 (Some(a), None) => a.clone(),
+                (None, Some(r)) => format!("(remove {r})"),
                 _ => "(start)".into(),
             },
             st.score.fit_percent,

@@ -395,7 +395,7 @@ pub struct AutoStep {
     pub step: usize,
     /// Effect added at this step.
     pub added: Option<String>,
-    /// Effect this step's addition replaced (the closing swap pass of `--auto`), if any.
+    /// Effect this step removed or replaced (the closing swap pass of `--auto`), if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub replaced: Option<String>,
     /// Score after the step (estimation data).
@@ -439,26 +439,40 @@ pub fn auto(
     let mut seen: Vec<diagnose::Candidate> = Vec::new();
     loop {
         let d = diagnose::diagnose(model, p, opts);
-        for c in d.candidates.iter().filter(|c| c.significant) {
-            if !seen.iter().any(|s| s.effect == c.effect) {
+        for c in &d.candidates {
+            // Significant candidates, and the best ripple even when not significant: a ripple
+            // period between grid points explains little at the grid, and gravity (a ripple of
+            // period 2π) takes its place; the swap pass then tries ripple for gravity.
+            let keep = c.significant
+                || (c.kind == Some(EffectKind::Ripple) && model.has(EffectKind::Gravity));
+            if keep && !seen.iter().any(|s| s.effect == c.effect) {
                 seen.push(c.clone());
             }
         }
         let Some(name) = d.verdict.add.clone() else {
-            if let Some((added, replaced)) = swap_pass(model, p, start_len, &seen)? {
+            let moves = swap_pass(model, p, start_len, &seen)?;
+            if moves.is_empty() {
+                return Ok(AutoRun { steps, last: d });
+            }
+            let sc = score(model, p);
+            let val = validation.map(|v| score(model, v));
+            for (added, replaced) in moves {
+                let verdict = match &added {
+                    Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
+                    None => format!("remove {replaced} (lower BIC)"),
+                };
                 steps.push(AutoStep {
                     step: steps.len(),
-                    added: Some(added.clone()),
-                    replaced: Some(replaced.clone()),
-                    score: score(model, p),
-                    validation: validation.map(|v| score(model, v)),
+                    added,
+                    replaced: Some(replaced),
+                    score: sc,
+                    validation: val,
                     p_value: None,
-                    verdict: format!("{added} replaces {replaced} (lower BIC)"),
+                    verdict,
                 });
-                let last = diagnose::diagnose(model, p, opts);
-                return Ok(AutoRun { steps, last });
             }
-            return Ok(AutoRun { steps, last: d });
+            let last = diagnose::diagnose(model, p, opts);
+            return Ok(AutoRun { steps, last });
         };
         if steps.len() > max_steps {
             return Ok(AutoRun { steps, last: d });
@@ -476,6 +490,13 @@ pub fn auto(
         });
     }
 }
+
+/// Weight of the per-parameter penalty ln n in `--auto`'s model comparisons: twice BIC's.
+/// The residual of a closed-loop record is not white (Ljung–Box rejects even at the noise
+/// floor), so n overstates the independent samples and plain BIC lets an extra column buy a
+/// few units of RSS with structure that is not a physical effect (asymmetry's second column
+/// where offset + Coulomb is the truth).
+const PENALTY: f64 = 2.0;
 
 /// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
 /// Stribeck velocity, dead-zone width, backlash width, quantum).
@@ -528,7 +549,8 @@ fn choose(
             .iter()
             .map(|v| v * v)
             .sum();
-        let bic = n * (rss / n).max(1e-300).ln() + spent_params(kind, c.df) as f64 * n.ln();
+        let bic =
+            n * (rss / n).max(1e-300).ln() + PENALTY * spent_params(kind, c.df) as f64 * n.ln();
         if best.as_ref().is_none_or(|b| bic < b.0) {
             best = Some((bic, c.clone(), m));
         }
@@ -551,41 +573,84 @@ fn bic(m: &Model, p: &Prepared) -> f64 {
         .iter()
         .map(|e| spent_params(e.kind, e.params.len()))
         .sum::<usize>();
-    n * (rss / n).max(1e-300).ln() + k as f64 * n.ln()
+    n * (rss / n).max(1e-300).ln() + PENALTY * k as f64 * n.ln()
+}
+
+/// Whether a fitted `new` effect contains `old` as a special case (a ripple of period 2π is
+/// gravity), so that replacing `old` by `new` is a nested comparison BIC can judge.
+fn nests(new: EffectKind, old: EffectKind) -> bool {
+    new == EffectKind::Ripple && old == EffectKind::Gravity
 }
 
 /// The closing swap pass of `--auto`: greedy addition can take an effect whose columns span
-/// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb), and
-/// the second true one then adds nothing new. Each effect `--auto` added is tried replaced by
-/// each other candidate that was significant at some step; the replacement with the lowest BIC
-/// is kept if it beats the current model. Returns (added, replaced) names.
+/// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
+/// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
+/// against the current model, the best one taken, repeated while one improves (at most three):
+/// remove an added effect; replace it by another candidate that was significant at some step
+/// and spends no more parameters (or nests it); replace it by two such candidates spending no
+/// more parameters together. Returns the (added, removed) names of each move (added `None`:
+/// a removal).
 fn swap_pass(
     model: &mut Model,
     p: &Prepared,
     start_len: usize,
     seen: &[diagnose::Candidate],
-) -> Result<Option<(String, String)>, fit::FitError> {
-    let mut best: Option<(f64, Model, String, String)> = None;
-    let current = bic(model, p);
-    for i in start_len..model.effects.len() {
-        for c in seen {
-            let Some(kind) = c.kind else { continue };
-            let e = &model.effects[i];
-            if model.has(kind) || spent_params(kind, c.df) > spent_params(e.kind, e.params.len()) {
-                continue;
-            }
-            let mut m = model.clone();
-            let old = m.effects.remove(i).kind;
-            m.add(kind, c.shape.clone());
-            refit_all(&mut m, p)?;
+) -> Result<Vec<(Option<String>, String)>, fit::FitError> {
+    let mut moves = Vec::new();
+    for _ in 0..3 {
+        let current = bic(model, p);
+        let mut best: Option<(f64, Model, Option<String>, String)> = None;
+        let mut consider = |m: Model, added: Option<String>, replaced: String| {
             let b = bic(&m, p);
             if b < current && best.as_ref().is_none_or(|x| b < x.0) {
-                best = Some((b, m, c.effect.clone(), old.name().to_string()));
+                best = Some((b, m, added, replaced));
+            }
+        };
+        for i in start_len..model.effects.len() {
+            let old = &model.effects[i];
+            let (old_kind, old_spent) = (old.kind, spent_params(old.kind, old.params.len()));
+            let mut base = model.clone();
+            base.effects.remove(i);
+            let mut m = base.clone();
+            refit_all(&mut m, p)?;
+            consider(m, None, old_kind.name().into());
+            let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
+                .iter()
+                .filter_map(|c| c.kind.map(|k| (c, k)))
+                .filter(|(_, k)| !model.has(*k))
+                .collect();
+            for (a, ka) in &fresh {
+                let sa = spent_params(*ka, a.df);
+                if (sa > old_spent || !a.significant) && !nests(*ka, old_kind) {
+                    continue;
+                }
+                let mut m = base.clone();
+                m.add(*ka, a.shape.clone());
+                refit_all(&mut m, p)?;
+                consider(m, Some(a.effect.clone()), old_kind.name().into());
+                for (b, kb) in &fresh {
+                    if kb <= ka || !b.significant || sa + spent_params(*kb, b.df) > old_spent {
+                        continue;
+                    }
+                    let mut m = base.clone();
+                    m.add(*ka, a.shape.clone());
+                    m.add(*kb, b.shape.clone());
+                    refit_all(&mut m, p)?;
+                    consider(
+                        m,
+                        Some(format!("{} + {}", a.effect, b.effect)),
+                        old_kind.name().into(),
+                    );
+                }
             }
         }
+        match best {
+            Some((_, m, added, replaced)) => {
+                *model = m;
+                moves.push((added, replaced));
+            }
+            None => break,
+        }
     }
-    Ok(best.map(|(_, m, added, replaced)| {
-        *model = m;
-        (added, replaced)
-    }))
+    Ok(moves)
 }
