@@ -7,6 +7,14 @@
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
 //! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
+//! Before LM, three searches least squares cannot do (see `search_shapes`): a delay's τ on the
+//! input actually delayed, Coulomb's sign lead and smoothing, and the ripple period on a fine
+//! grid.
+//!
+//! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
+//! (BIC); when nothing significant is left it probes for a delay on the measured input, then
+//! tries removals and replacements of what it added (BIC), because greedy addition can take
+//! one flexible effect for two true ones.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
@@ -450,6 +458,21 @@ pub fn auto(
             }
         }
         let Some(name) = d.verdict.add.clone() else {
+            if steps.len() <= max_steps {
+                if let Some((m, text)) = delay_probe(model, p, opts)? {
+                    *model = m;
+                    steps.push(AutoStep {
+                        step: steps.len(),
+                        added: Some(EffectKind::Delay.name().into()),
+                        replaced: None,
+                        score: score(model, p),
+                        validation: validation.map(|v| score(model, v)),
+                        p_value: None,
+                        verdict: text,
+                    });
+                    continue;
+                }
+            }
             let moves = swap_pass(model, p, start_len, &seen)?;
             if moves.is_empty() {
                 return Ok(AutoRun { steps, last: d });
@@ -653,4 +676,56 @@ fn swap_pass(
         }
     }
     Ok(moves)
+}
+
+/// The delay probe of `--auto`, once the diagnosis finds nothing more. The diagnosis tests a
+/// delay with a column built from the motion-based instrument (its only safe choice against
+/// the input's own noise), which has little power for a delay of a few samples behind a
+/// stronger effect. The refit's τ search on the measured input (see `search_shapes`) has
+/// no such bias — shifting white noise does not change its sum of squares — so the delay is
+/// added if that search removes at least `min_err` of the residual and `min_rho` × the noise
+/// floor of RMS, and lowers the (doubled-penalty) BIC.
+fn delay_probe(
+    model: &Model,
+    p: &Prepared,
+    opts: &Options,
+) -> Result<Option<(Model, String)>, fit::FitError> {
+    if model.has(EffectKind::Delay) {
+        return Ok(None);
+    }
+    let rss = |m: &Model| -> f64 {
+        residual::equation_error(m, p)
+            .residual
+            .iter()
+            .map(|v| v * v)
+            .sum()
+    };
+    let r0 = rss(model);
+    let mut m = model.clone();
+    m.add(
+        EffectKind::Delay,
+        Shape {
+            smoothing: 1,
+            ..Shape::default()
+        },
+    );
+    refit_all(&mut m, p)?;
+    let r1 = rss(&m);
+    let n = p.len() as f64;
+    let err = (r0 - r1) / r0.max(1e-300);
+    let explained = ((r0 - r1).max(0.0) / n).sqrt();
+    let tau = m.effects.last().map_or(0.0, |e| e.shape.delay);
+    if tau > 0.0
+        && err >= opts.min_err
+        && explained >= opts.min_rho * p.noise_floor
+        && bic(&m, p) < bic(model, p)
+    {
+        let text = format!(
+            "add delay (τ = {:.2} ms by search on the measured input; explains {:.1} % of the residual)",
+            1e3 * tau,
+            100.0 * err
+        );
+        return Ok(Some((m, text)));
+    }
+    Ok(None)
 }

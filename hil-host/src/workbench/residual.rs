@@ -150,8 +150,9 @@ fn instrument(p: &Prepared) -> Vec<f64> {
 /// a *nonlinear* function of the motion (a sign at each reversal, a short-period ripple)
 /// reaches the residual band-limited; its column must be too, or every sharp edge leaves a
 /// residual spike. Columns already built from filtered signals (v, derivatives of the filtered
-/// position, the instrument: delay, dead zone, quantiser) and constants are left as they are
-/// (filtering the instrument-based dead-zone columns again made them fit null records).
+/// position, the instrument: delay, dead zone, quantiser; backlash, built from the filtered
+/// motion) and constants are left as they are (filtering the instrument-based dead-zone
+/// columns again made them fit null records; filtering backlash cost it rank 1 in the bench).
 fn filtered(kind: EffectKind) -> bool {
     !matches!(
         kind,
@@ -161,6 +162,7 @@ fn filtered(kind: EffectKind) -> bool {
             | EffectKind::Delay
             | EffectKind::Deadband
             | EffectKind::Quantization
+            | EffectKind::Backlash
     )
 }
 
