@@ -3,7 +3,10 @@
 //!
 //! ```sh
 //! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
+//!     [--family a,b | --pairs-only | --nulls-only]
 //! ```
+//! `--family` runs only those single-effect families, `--pairs-only` only the `--auto` pairs,
+//! `--nulls-only` only the null trials (quick iteration); seeds are the same as in a full run.
 //! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
 
 use std::collections::BTreeMap;
