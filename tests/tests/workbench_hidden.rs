@@ -118,3 +118,34 @@ fn auto_finds_two_hidden_effects() {
         );
     }
 }
+
+#[test]
+fn auto_adds_nothing_to_null_records() {
+    use hil_host::workbench::diagnose::Options;
+    use hil_host::workbench::refine;
+    use hil_host::workbench::residual::Prepared;
+    use jointlab_tests::hidden::{cutoff, generate, start_model};
+    // `--auto` goes beyond the diagnosis (BIC choice, delay probe, swap pass): on records
+    // with no hidden effect it must still add nothing. Fixed consecutive seeds; one miss allowed.
+    let mut added = Vec::new();
+    let mut runs = 0;
+    for seed in 71_000..71_006 {
+        let Some(t) = generate(seed, &[], 1.0) else {
+            continue;
+        };
+        runs += 1;
+        let p = Prepared::new(&t.est, cutoff());
+        let mut m = start_model(&[]);
+        let run = refine::auto(&mut m, &p, None, &Options::default(), 6).expect("auto");
+        let names: Vec<String> = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+        println!("null seed {seed}: --auto added {names:?}");
+        if !names.is_empty() {
+            added.push(names);
+        }
+    }
+    assert!(runs >= 5, "too many unstable draws");
+    assert!(
+        added.len() <= 1,
+        "--auto added effects to null records: {added:?}"
+    );
+}
