@@ -127,12 +127,14 @@ fn line_search(
     best
 }
 
-/// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum).
+/// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum);
+/// keeps `keep` (the grid point) if that is still better.
 fn golden(
     model: &mut Model,
     p: &Prepared,
     e: usize,
     (mut lo, mut hi): (f64, f64),
+    keep: f64,
     iters: usize,
     set: &dyn Fn(&mut Model, usize, f64),
 ) -> (f64, f64) {
@@ -158,7 +160,8 @@ fn golden(
         }
     }
     let x = if fa < fb { a } else { b };
-    line_search(model, p, e, &[x], set)
+    // Never worse than the grid point the bracket was built around.
+    line_search(model, p, e, &[x, keep], set)
 }
 
 fn set_delay(m: &mut Model, e: usize, tau: f64) {
@@ -190,7 +193,15 @@ fn search_shapes(model: &mut Model, p: &Prepared) {
             EffectKind::Delay => {
                 let grid: Vec<f64> = (0..=30).map(|k| k as f64 * dt).collect();
                 let (t0, _) = line_search(model, p, e, &grid, &set_delay);
-                let (t1, r1) = golden(model, p, e, ((t0 - dt).max(0.0), t0 + dt), 14, &set_delay);
+                let (t1, r1) = golden(
+                    model,
+                    p,
+                    e,
+                    ((t0 - dt).max(0.0), t0 + dt),
+                    t0,
+                    14,
+                    &set_delay,
+                );
                 // 1σ from the curvature of RSS(τ): var = 2·s²/RSS''.
                 let h = 0.25 * dt;
                 let at = |tau: f64| {
@@ -222,10 +233,21 @@ fn search_shapes(model: &mut Model, p: &Prepared) {
                         .iter()
                         .map(|s| s.sign_epsilon)
                         .collect();
-                line_search(model, p, e, &leads, &set_lead);
-                line_search(model, p, e, &eps, &set_eps);
-                let (l, _) = line_search(model, p, e, &leads, &set_lead);
-                golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), 8, &set_lead);
+                // Joint grid (the two trade off against each other), then the lead refined.
+                let mut best: Option<(f64, Model)> = None;
+                for &x in &eps {
+                    let mut m = model.clone();
+                    set_eps(&mut m, e, x);
+                    let (_, r) = line_search(&mut m, p, e, &leads, &set_lead);
+                    if best.as_ref().is_none_or(|b| r < b.0) {
+                        best = Some((r, m));
+                    }
+                }
+                if let Some((_, m)) = best {
+                    *model = m;
+                }
+                let l = model.effects[e].shape.sign_lead;
+                golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
             }
             EffectKind::Ripple => {
                 let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());

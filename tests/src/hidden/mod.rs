@@ -541,6 +541,14 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
                     out.val_ratio,
                     r.params
                 );
+                for e in &m.effects {
+                    eprintln!(
+                        "  {}: sign ε {:.3e}, lead {:.2e} s",
+                        e.kind.name(),
+                        e.shape.sign_epsilon,
+                        e.shape.sign_lead
+                    );
+                }
             }
         }
         2 => {
