@@ -164,6 +164,57 @@ fn golden(
     line_search(model, p, e, &[x, keep], set)
 }
 
+/// The `count` highest local maxima of the position periodogram |Σ r·e^{i2πq/P}|² of the
+/// residual `r` of `model` without effect `e`, over periods P ∈ [lo, hi] spaced by 1 %.
+fn periodogram_peaks(
+    model: &Model,
+    p: &Prepared,
+    e: usize,
+    lo: f64,
+    hi: f64,
+    count: usize,
+) -> Vec<f64> {
+    let mut m = model.clone();
+    m.effects.remove(e);
+    let Ok(fit) = residual::refit(&mut m, p) else {
+        return Vec::new();
+    };
+    let r = &fit.residual;
+    if !(lo > 0.0 && hi > lo) {
+        return Vec::new();
+    }
+    let steps = ((hi / lo).ln() / 1.01f64.ln()).ceil() as usize;
+    let periods: Vec<f64> = (0..=steps).map(|k| lo * 1.01f64.powi(k as i32)).collect();
+    let power = |period: f64| -> f64 {
+        let k = std::f64::consts::TAU / period;
+        let (mut a, mut b) = (0.0, 0.0);
+        for (x, q) in r.iter().zip(&p.position) {
+            let (sn, cs) = (k * q).sin_cos();
+            a += x * sn;
+            b += x * cs;
+        }
+        a * a + b * b
+    };
+    let half = periods.len() / 2;
+    let pw: Vec<f64> = std::thread::scope(|sc| {
+        let h = sc.spawn(|| {
+            periods[half..]
+                .iter()
+                .map(|&x| power(x))
+                .collect::<Vec<_>>()
+        });
+        let mut v: Vec<f64> = periods[..half].iter().map(|&x| power(x)).collect();
+        v.extend(h.join().expect("periodogram worker"));
+        v
+    });
+    let mut peaks: Vec<(f64, f64)> = (1..pw.len().saturating_sub(1))
+        .filter(|&i| pw[i] >= pw[i - 1] && pw[i] >= pw[i + 1])
+        .map(|i| (pw[i], periods[i]))
+        .collect();
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    peaks.into_iter().take(count).map(|(_, x)| x).collect()
+}
+
 fn set_delay(m: &mut Model, e: usize, tau: f64) {
     let tau = tau.max(0.0);
     m.effects[e].shape.delay = tau;
@@ -180,7 +231,8 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   (u − u(t − τs))/τs with a free amplitude: that column carries the input's own noise.
 /// * **Coulomb**: the sign's time lead (`Shape::sign_lead`) and smoothing ε, by coordinate
 ///   search: dynamic friction reverses over a pre-sliding displacement, not exactly at v = 0.
-/// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step), because
+/// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step) and around
+///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
 ///   the RSS oscillates in the period and LM only finds the nearest minimum.
 fn search_shapes(model: &mut Model, p: &Prepared) {
     let dt = p.dt;
@@ -257,9 +309,19 @@ fn search_shapes(model: &mut Model, p: &Prepared) {
                     1.0
                 };
                 let p0 = entry.shape.ripple_period;
-                let xs: Vec<f64> = (-10..=10)
+                let mut xs: Vec<f64> = (-10..=10)
                     .map(|k| p0 * step.powf(k as f64 / 10.0))
                     .collect();
+                // A ripple of many periods over the travel explains almost nothing one coarse
+                // step (×1.25) off its period, so the coarse best can be anywhere: add the
+                // peaks of a fine position periodogram of the residual without the ripple.
+                if let (Some(lo), Some(hi)) = (grid.first(), grid.last()) {
+                    for peak in
+                        periodogram_peaks(model, p, e, lo.ripple_period, hi.ripple_period, 3)
+                    {
+                        xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
+                    }
+                }
                 let set_period =
                     |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
                 line_search(model, p, e, &xs, &set_period);
