@@ -1,17 +1,17 @@
 //! Hidden-effect trials, reduced for CI (the full ≥ 200-per-family run with the confusion
 //! matrix is `cargo run --release -p jointlab-tests --bin hidden-trials`).
 //!
-//! Trial counts here: 3 per family at target ρ = 2 (rank 1 and verdict; compliance: rank 1)
-//! for the seven families whose rank-1 rate
-//! currently meets (or nearly meets) the bar (offset, coulomb, asymmetry, ripple,
-//! gravity, delay, compliance), 10 null trials, 2 pair trials for `--auto`. Seeds are fixed
-//! and consecutive (not picked); each group allows at most the misses stated in its assertion.
-//! What does NOT yet meet the bar (stribeck, backlash; the refit-to-noise-floor of Coulomb,
-//! gravity, delay and compliance) is measured by the bench binary and listed in
-//! docs/workbench.md — it is not asserted here. Quantization ranks first in 95 % of the bench's
-//! trials at ρ ≥ 1 but is not asserted either: its generator misses the strength target on
-//! this group's seeds (measured ρ 0.9–1.4 for a target of 2), and on two of the three an
-//! unresolved (above-band) compliance mode ranks first.
+//! Trial counts here: 3 per family at target ρ = 2 for the seven families whose rank-1 rate
+//! meets (or nearly meets) the bar (offset, coulomb, asymmetry, ripple, gravity, delay:
+//! rank 1 and verdict; compliance: rank 1), the refit to the noise floor where the bench meets
+//! it (all of those but gravity and compliance), 10 null trials, 3 pair trials for `--auto`
+//! (coulomb + offset, gravity + asymmetry, offset + delay). Seeds are fixed and consecutive
+//! (not picked); each group allows at most the misses stated in its assertion. What does NOT
+//! yet meet the bar (stribeck, backlash; the refit of compliance and quantization) is measured
+//! by the bench binary and listed in docs/workbench.md — it is not asserted here. Quantization
+//! ranks first in 95 % of the bench's trials at ρ ≥ 1 but is not asserted either: its generator
+//! misses the strength target on this group's seeds (measured ρ 0.9–1.4 for a target of 2),
+//! and on two of the three an unresolved (above-band) compliance mode ranks first.
 //!
 //! Run in release (about 30–60 s on 2 cores):
 //! `cargo test --release -p jointlab-tests --test workbench_hidden`
@@ -67,11 +67,15 @@ fn single_effects_rank_first_and_refit_to_the_noise_floor() {
             f.name(),
             out.len()
         );
-        if matches!(f, Family::Offset | Family::Asymmetry | Family::Ripple) {
-            // Refit-to-noise-floor is asserted only where the bench mostly meets it (offset and
-            // asymmetry 100 %, ripple 81.5 %, one miss allowed): static Coulomb cannot
-            // represent LuGre pre-sliding (38 %), the delay refit reaches 20 % and gravity
-            // 96 %; all measured by the bench (40 per family, real library), docs/workbench.md.
+        if !matches!(f, Family::Gravity | Family::Compliance) {
+            // Refit-to-noise-floor, asserted for the five families where the bench meets it (not
+            // compliance: `fit --add` does not refine its mode shape yet)
+            // (40 per family, docs/workbench.md): band-limited nonlinear columns, the Coulomb
+            // sign lead, the delay fitted on the delayed input and the fine ripple period took
+            // Coulomb, delay and ripple there. One miss allowed per family. Not gravity: its
+            // estimation refit reaches the floor, but on these seeds the validation record
+            // covers angles the estimation record did not, and a short-travel sin/cos fit
+            // extrapolates (2 of 3 above 1.1·floor here; see the bench for the rate).
             let fit_ok = out.iter().filter(|o| o.val_ratio <= 1.1).count();
             assert!(
                 fit_ok + 1 >= out.len(),
@@ -104,7 +108,12 @@ fn auto_finds_two_hidden_effects() {
         90_001..90_002,
         2.0,
     ));
-    assert_eq!(out.len(), 2);
+    out.extend(trials(
+        &[Family::Offset, Family::Delay],
+        90_002..90_003,
+        2.0,
+    ));
+    assert_eq!(out.len(), 3);
     for o in &out {
         println!(
             "hidden {:?} → --auto added {:?}",
@@ -118,4 +127,35 @@ fn auto_finds_two_hidden_effects() {
             o.auto_added
         );
     }
+}
+
+#[test]
+fn auto_adds_nothing_to_null_records() {
+    use hil_host::workbench::diagnose::Options;
+    use hil_host::workbench::refine;
+    use hil_host::workbench::residual::Prepared;
+    use jointlab_tests::hidden::{cutoff, generate, start_model};
+    // `--auto` goes beyond the diagnosis (BIC choice, delay probe, swap pass): on records
+    // with no hidden effect it must still add nothing. Fixed consecutive seeds; one miss allowed.
+    let mut added = Vec::new();
+    let mut runs = 0;
+    for seed in 71_000..71_006 {
+        let Some(t) = generate(seed, &[], 1.0) else {
+            continue;
+        };
+        runs += 1;
+        let p = Prepared::new(&t.est, cutoff());
+        let mut m = start_model(&[]);
+        let run = refine::auto(&mut m, &p, None, &Options::default(), 6).expect("auto");
+        let names: Vec<String> = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+        println!("null seed {seed}: --auto added {names:?}");
+        if !names.is_empty() {
+            added.push(names);
+        }
+    }
+    assert!(runs >= 5, "too many unstable draws");
+    assert!(
+        added.len() <= 1,
+        "--auto added effects to null records: {added:?}"
+    );
 }

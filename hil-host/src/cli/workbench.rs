@@ -256,7 +256,12 @@ fn auto_text(run: &AutoRun) -> String {
         s.push_str(&format!(
             "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
             st.step,
-            st.added.as_deref().unwrap_or("(start)"),
+            match (&st.added, &st.replaced) {
+                (Some(a), Some(r)) => format!("{a} (for {r})"),
+                (Some(a), None) => a.clone(),
+                (None, Some(r)) => format!("(remove {r})"),
+                _ => "(start)".into(),
+            },
             st.score.fit_percent,
             st.score.rms,
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),

@@ -36,7 +36,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
-use sim_plant::effects::{fingerprint, resolved, shape_search, EffectKind, Shape, Trajectory};
+use sim_plant::effects::{resolved, shape_search, EffectKind, Shape, Trajectory};
 
 use super::fit::{self, gram, gram_inverse};
 use super::metrics;
@@ -193,7 +193,7 @@ fn scan(
     // The window's residual, made orthogonal to the window's regressors.
     let ew = fit::least_squares(&xw, &e[w.clone()]).ok()?.residual;
     let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew)?;
-    let z = fingerprint(kind, &t, &shape);
+    let z = residual::candidate_columns_on(kind, &t, &shape);
     let (dr, first) = delta_rss_signed(&z, x0, g0i, e);
     let dr = match kind.admissible_sign() {
         Some(sg) if first * sg <= 0.0 => 0.0,
@@ -220,7 +220,7 @@ fn search(
     // on it and hide an admissible shape.
     let sign = kind.admissible_sign();
     shape_search(kind, t, |s| {
-        let z = fingerprint(kind, t, s);
+        let z = residual::candidate_columns_on(kind, t, s);
         if z.is_empty() {
             return None;
         }
@@ -351,7 +351,7 @@ pub fn scan_shape(
 /// ambiguous. (Both already passed the noise-floor test, so the comparison is relative.)
 fn prefer_parsimonious(
     cands: &mut [Candidate],
-    t: &sim_plant::effects::Trajectory,
+    p: &Prepared,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
@@ -360,7 +360,7 @@ fn prefer_parsimonious(
     let Some(top) = cands.first().filter(|c| c.significant).cloned() else {
         return;
     };
-    let zt = fingerprint(top.kind.expect("kind"), t, &top.shape);
+    let zt = residual::candidate_columns(top.kind.expect("kind"), p, &top.shape);
     let ct = contribution(&zt, x0, g0i, e);
     let mut best: Option<usize> = None;
     for (i, c) in cands.iter().enumerate().skip(1) {
@@ -372,7 +372,7 @@ fn prefer_parsimonious(
         if top.err - c.err >= opts.min_err {
             continue;
         }
-        let zc = fingerprint(c.kind.expect("kind"), t, &c.shape);
+        let zc = residual::candidate_columns(c.kind.expect("kind"), p, &c.shape);
         let cc = contribution(&zc, x0, g0i, e);
         if corr(&ct, &cc).abs() >= opts.ambiguity_corr {
             best = Some(i);
@@ -402,11 +402,35 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
 
     let mut untestable = Vec::new();
     let mut scans = Vec::new();
-    for kind in EffectKind::ALL {
-        if model.has(kind) {
-            continue;
-        }
-        match scan(kind, p, x0, &g0i, e, rss) {
+    // The shape scans are independent: run them on the available cores.
+    let kinds: Vec<EffectKind> = EffectKind::ALL
+        .into_iter()
+        .filter(|&k| !model.has(k))
+        .collect();
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .clamp(1, kinds.len().max(1));
+    let mut scanned: Vec<(usize, Option<Scan>)> = std::thread::scope(|sc| {
+        let hs: Vec<_> = (0..workers)
+            .map(|w| {
+                let (kinds, g0i) = (&kinds, &g0i);
+                sc.spawn(move || {
+                    (w..kinds.len())
+                        .step_by(workers)
+                        .map(|i| (i, scan(kinds[i], p, x0, g0i, e, rss)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .flat_map(|h| h.join().expect("scan worker"))
+            .collect()
+    });
+    scanned.sort_by_key(|(i, _)| *i);
+    for (i, sc) in scanned {
+        let kind = kinds[i];
+        match sc {
             Some(s) if s.err > 0.0 => scans.push(s),
             Some(_) => untestable.push(format!(
                 "{}: fingerprint already spanned by the model on this record",
@@ -424,7 +448,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let mut cands: Vec<Candidate> = scans
         .iter()
         .map(|s| {
-            let z = fingerprint(s.kind, &t, &s.shape);
+            let z = residual::candidate_columns_on(s.kind, &t, &s.shape);
             let q = z.len();
             let mut cols = x0.clone();
             cols.extend(z);
@@ -480,7 +504,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         }
     }
     cands.sort_by(|a, b| b.err.total_cmp(&a.err));
-    prefer_parsimonious(&mut cands, &t, x0, &g0i, e, opts);
+    prefer_parsimonious(&mut cands, p, x0, &g0i, e, opts);
     for (i, c) in cands.iter_mut().enumerate() {
         c.rank = i + 1;
     }
@@ -495,7 +519,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         },
         Some(w) => {
             let wk = w.kind.expect("kind");
-            let zw = fingerprint(wk, &t, &w.shape);
+            let zw = residual::candidate_columns(wk, p, &w.shape);
             let cw = contribution(&zw, x0, &g0i, e);
             let mut amb = Vec::new();
             for c in cands
@@ -506,7 +530,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
                 if c.err < opts.ambiguity_err_ratio * w.err {
                     continue;
                 }
-                let zc = fingerprint(c.kind.expect("kind"), &t, &c.shape);
+                let zc = residual::candidate_columns(c.kind.expect("kind"), p, &c.shape);
                 let cc = contribution(&zc, x0, &g0i, e);
                 if corr(&cw, &cc).abs() >= opts.ambiguity_corr {
                     amb.push(c.kind.expect("kind"));

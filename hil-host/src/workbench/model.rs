@@ -410,6 +410,7 @@ mod tests {
         m.add(EffectKind::Coulomb, Shape::default());
         m.effects[1].params[0].value = 20.39;
         m.effects[1].shape.sign_epsilon = 2.5e-4;
+        m.effects[1].shape.sign_lead = -1.5e-3;
         m.add(EffectKind::Offset, Shape::default());
         m.effects[2].params[0].value = -3.16;
         m.effects[2].params[0].sigma = Some(0.21);
@@ -439,6 +440,7 @@ mod tests {
         assert_eq!(sim.plant.gear_ratio.value, 1.0);
         assert_eq!(sim.motor.inertia.value, 95.1);
         // … and the fitter gets back what it wrote, analysis shapes and 1σ included.
+        assert!(text.contains("sign_lead"), "{text}");
         let back = Model::from_sim(&sim).unwrap();
         assert_eq!(back.inertia.value, 95.1);
         assert_eq!(back.inertia.sigma, Some(0.2));

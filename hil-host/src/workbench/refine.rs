@@ -7,6 +7,14 @@
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
 //! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
+//! Before LM, three searches least squares cannot do (see `search_shapes`): a delay's τ on the
+//! input actually delayed, Coulomb's sign lead and smoothing, and the ripple period on a fine
+//! grid.
+//!
+//! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
+//! (BIC); when nothing significant is left it probes for a delay on the measured input, then
+//! tries removals and replacements of what it added (BIC), because greedy addition can take
+//! one flexible effect for two true ones.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
@@ -77,7 +85,6 @@ fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
         EffectKind::Stribeck => Some(s.stribeck_velocity),
         EffectKind::Ripple => Some(s.ripple_period),
         EffectKind::Deadband => Some(s.deadband_width),
-        EffectKind::Delay => Some(s.delay),
         _ => None,
     }
 }
@@ -87,8 +94,240 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
         EffectKind::Stribeck => s.stribeck_velocity = v,
         EffectKind::Ripple => s.ripple_period = v,
         EffectKind::Deadband => s.deadband_width = v,
-        EffectKind::Delay => s.delay = v,
         _ => {}
+    }
+}
+
+/// RSS of the least-squares refit of `m` (∞ if it fails); `m` keeps the fitted amplitudes.
+fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
+    residual::refit(m, p).map_or(f64::INFINITY, |f| f.rss)
+}
+
+/// Try each shape `set(shape, x)` for `x` in `xs` on effect `e`, keep the best by LS RSS.
+/// Returns the best x and its RSS.
+fn line_search(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    xs: &[f64],
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let mut best = (f64::NAN, f64::INFINITY);
+    let mut best_model = model.clone();
+    for &x in xs {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        let r = ls_rss(&mut m, p);
+        if r < best.1 {
+            best = (x, r);
+            best_model = m;
+        }
+    }
+    *model = best_model;
+    best
+}
+
+/// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum);
+/// keeps `keep` (the grid point) if that is still better.
+fn golden(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    (mut lo, mut hi): (f64, f64),
+    keep: f64,
+    iters: usize,
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let eval = |x: f64| {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        ls_rss(&mut m, p)
+    };
+    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fa, mut fb) = (eval(a), eval(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            (b, fb) = (a, fa);
+            a = hi - g * (hi - lo);
+            fa = eval(a);
+        } else {
+            lo = a;
+            (a, fa) = (b, fb);
+            b = lo + g * (hi - lo);
+            fb = eval(b);
+        }
+    }
+    let x = if fa < fb { a } else { b };
+    // Never worse than the grid point the bracket was built around.
+    line_search(model, p, e, &[x, keep], set)
+}
+
+/// The `count` highest local maxima of the position periodogram |Σ r·e^{i2πq/P}|² of the
+/// residual `r` of `model` without effect `e`, over periods P ∈ [lo, hi] spaced by 1 %.
+fn periodogram_peaks(
+    model: &Model,
+    p: &Prepared,
+    e: usize,
+    lo: f64,
+    hi: f64,
+    count: usize,
+) -> Vec<f64> {
+    let mut m = model.clone();
+    m.effects.remove(e);
+    let Ok(fit) = residual::refit(&mut m, p) else {
+        return Vec::new();
+    };
+    let r = &fit.residual;
+    if !(lo > 0.0 && hi > lo) {
+        return Vec::new();
+    }
+    let steps = ((hi / lo).ln() / 1.01f64.ln()).ceil() as usize;
+    let periods: Vec<f64> = (0..=steps).map(|k| lo * 1.01f64.powi(k as i32)).collect();
+    let power = |period: f64| -> f64 {
+        let k = std::f64::consts::TAU / period;
+        let (mut a, mut b) = (0.0, 0.0);
+        for (x, q) in r.iter().zip(&p.position) {
+            let (sn, cs) = (k * q).sin_cos();
+            a += x * sn;
+            b += x * cs;
+        }
+        a * a + b * b
+    };
+    let half = periods.len() / 2;
+    let pw: Vec<f64> = std::thread::scope(|sc| {
+        let h = sc.spawn(|| {
+            periods[half..]
+                .iter()
+                .map(|&x| power(x))
+                .collect::<Vec<_>>()
+        });
+        let mut v: Vec<f64> = periods[..half].iter().map(|&x| power(x)).collect();
+        v.extend(h.join().expect("periodogram worker"));
+        v
+    });
+    let mut peaks: Vec<(f64, f64)> = (1..pw.len().saturating_sub(1))
+        .filter(|&i| pw[i] >= pw[i - 1] && pw[i] >= pw[i + 1])
+        .map(|i| (pw[i], periods[i]))
+        .collect();
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    peaks.into_iter().take(count).map(|(_, x)| x).collect()
+}
+
+fn set_delay(m: &mut Model, e: usize, tau: f64) {
+    let tau = tau.max(0.0);
+    m.effects[e].shape.delay = tau;
+    if let Some(q) = m.effects[e].params.first_mut() {
+        q.value = tau;
+    }
+}
+
+/// Shape searches the least-squares refit cannot do, before Levenberg–Marquardt:
+///
+/// * **Delay**: τ by a 1-D search on the residual re-formed with the measured input actually
+///   delayed by τ (grid over 0–30 samples, then golden section; fractional delays by linear
+///   interpolation), the rest by least squares at each τ. Not the linear column
+///   (u − u(t − τs))/τs with a free amplitude: that column carries the input's own noise.
+/// * **Coulomb**: the sign's time lead (`Shape::sign_lead`) and smoothing ε, by coordinate
+///   search: dynamic friction reverses over a pre-sliding displacement, not exactly at v = 0.
+/// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step) and around
+///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
+///   the RSS oscillates in the period and LM only finds the nearest minimum.
+fn search_shapes(model: &mut Model, p: &Prepared) {
+    let dt = p.dt;
+    for e in 0..model.effects.len() {
+        let entry = &model.effects[e];
+        if !entry.params.iter().any(|q| q.free) {
+            continue;
+        }
+        match entry.kind {
+            EffectKind::Delay => {
+                let grid: Vec<f64> = (0..=30).map(|k| k as f64 * dt).collect();
+                let (t0, _) = line_search(model, p, e, &grid, &set_delay);
+                let (t1, r1) = golden(
+                    model,
+                    p,
+                    e,
+                    ((t0 - dt).max(0.0), t0 + dt),
+                    t0,
+                    14,
+                    &set_delay,
+                );
+                // 1σ from the curvature of RSS(τ): var = 2·s²/RSS''.
+                let h = 0.25 * dt;
+                let at = |tau: f64| {
+                    let mut m = model.clone();
+                    set_delay(&mut m, e, tau);
+                    ls_rss(&mut m, p)
+                };
+                let curv = (at(t1 + h) - 2.0 * r1 + at((t1 - h).max(0.0))) / (h * h);
+                let s2 = r1 / (p.len() as f64 - model.params().len() as f64).max(1.0);
+                if let Some(q) = model.effects[e].params.first_mut() {
+                    q.sigma = Some(if curv > 0.0 {
+                        (2.0 * s2 / curv).sqrt()
+                    } else {
+                        f64::NAN
+                    });
+                }
+            }
+            EffectKind::Coulomb => {
+                let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
+                let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
+                let leads: Vec<f64> = [
+                    -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+                ]
+                .iter()
+                .map(|k| k * dt)
+                .collect();
+                let eps: Vec<f64> =
+                    sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+                        .iter()
+                        .map(|s| s.sign_epsilon)
+                        .collect();
+                // Joint grid (the two trade off against each other), then the lead refined.
+                let mut best: Option<(f64, Model)> = None;
+                for &x in &eps {
+                    let mut m = model.clone();
+                    set_eps(&mut m, e, x);
+                    let (_, r) = line_search(&mut m, p, e, &leads, &set_lead);
+                    if best.as_ref().is_none_or(|b| r < b.0) {
+                        best = Some((r, m));
+                    }
+                }
+                if let Some((_, m)) = best {
+                    *model = m;
+                }
+                let l = model.effects[e].shape.sign_lead;
+                golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
+            }
+            EffectKind::Ripple => {
+                let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
+                let step = if grid.len() > 1 {
+                    grid[1].ripple_period / grid[0].ripple_period
+                } else {
+                    1.0
+                };
+                let p0 = entry.shape.ripple_period;
+                let mut xs: Vec<f64> = (-10..=10)
+                    .map(|k| p0 * step.powf(k as f64 / 10.0))
+                    .collect();
+                // A ripple of many periods over the travel explains almost nothing one coarse
+                // step (×1.25) off its period, so the coarse best can be anywhere: add the
+                // peaks of a fine position periodogram of the residual without the ripple.
+                if let (Some(lo), Some(hi)) = (grid.first(), grid.last()) {
+                    for peak in
+                        periodogram_peaks(model, p, e, lo.ripple_period, hi.ripple_period, 3)
+                    {
+                        xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
+                    }
+                }
+                let set_period =
+                    |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
+                line_search(model, p, e, &xs, &set_period);
+            }
+            _ => {}
+        }
     }
 }
 
@@ -104,6 +343,8 @@ pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape
 /// Refit all free parameters of a model (LS; LM over smooth shapes of free effects).
 pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     residual::refit(model, p)?;
+    search_shapes(model, p);
+    residual::refit(model, p)?;
     let lm_idx: Vec<usize> = model
         .effects
         .iter()
@@ -116,12 +357,21 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     if lm_idx.is_empty() {
         return Ok(());
     }
-    // x = [free amplitudes..., ln(shape) per LM effect]
+    // x = [free amplitudes..., ln(shape) per LM effect]; a delay's τ stays where its own
+    // search put it (see `search_shapes`).
+    let owner: Vec<Option<EffectKind>> = std::iter::once(None)
+        .chain(
+            model
+                .effects
+                .iter()
+                .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
+        )
+        .collect();
     let free: Vec<usize> = model
         .params()
         .iter()
         .enumerate()
-        .filter(|(_, q)| q.free)
+        .filter(|(i, q)| q.free && owner[*i] != Some(EffectKind::Delay))
         .map(|(i, _)| i)
         .collect();
     let mut x0: Vec<f64> = free.iter().map(|&i| model.params()[i].value).collect();
@@ -237,6 +487,9 @@ pub struct AutoStep {
     pub step: usize,
     /// Effect added at this step.
     pub added: Option<String>,
+    /// Effect this step removed or replaced (the closing swap pass of `--auto`), if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub replaced: Option<String>,
     /// Score after the step (estimation data).
     pub score: Score,
     /// Score on validation data.
@@ -268,34 +521,295 @@ pub fn auto(
     let mut steps = vec![AutoStep {
         step: 0,
         added: None,
+        replaced: None,
         score: score(model, p),
         validation: validation.map(|v| score(model, v)),
         p_value: None,
         verdict: "start".into(),
     }];
+    let start_len = model.effects.len();
+    let mut seen: Vec<diagnose::Candidate> = Vec::new();
     loop {
         let d = diagnose::diagnose(model, p, opts);
+        for c in &d.candidates {
+            // Significant candidates, and the best ripple even when not significant: a ripple
+            // period between grid points explains little at the grid, and gravity (a ripple of
+            // period 2π) takes its place; the swap pass then tries ripple for gravity.
+            let keep = c.significant
+                || (c.kind == Some(EffectKind::Ripple) && model.has(EffectKind::Gravity));
+            if keep && !seen.iter().any(|s| s.effect == c.effect) {
+                seen.push(c.clone());
+            }
+        }
         let Some(name) = d.verdict.add.clone() else {
-            return Ok(AutoRun { steps, last: d });
+            if steps.len() <= max_steps {
+                if let Some((m, text)) = delay_probe(model, p, opts)? {
+                    *model = m;
+                    steps.push(AutoStep {
+                        step: steps.len(),
+                        added: Some(EffectKind::Delay.name().into()),
+                        replaced: None,
+                        score: score(model, p),
+                        validation: validation.map(|v| score(model, v)),
+                        p_value: None,
+                        verdict: text,
+                    });
+                    continue;
+                }
+            }
+            let moves = swap_pass(model, p, start_len, &seen)?;
+            if moves.is_empty() {
+                return Ok(AutoRun { steps, last: d });
+            }
+            let sc = score(model, p);
+            let val = validation.map(|v| score(model, v));
+            for (added, replaced) in moves {
+                let verdict = match &added {
+                    Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
+                    None => format!("remove {replaced} (lower BIC)"),
+                };
+                steps.push(AutoStep {
+                    step: steps.len(),
+                    added,
+                    replaced: Some(replaced),
+                    score: sc,
+                    validation: val,
+                    p_value: None,
+                    verdict,
+                });
+            }
+            let last = diagnose::diagnose(model, p, opts);
+            return Ok(AutoRun { steps, last });
         };
         if steps.len() > max_steps {
             return Ok(AutoRun { steps, last: d });
         }
-        let c = d
-            .candidates
-            .iter()
-            .find(|c| c.effect == name)
-            .expect("winner is a candidate");
-        let kind = c.kind.expect("kind");
-        model.add(kind, c.shape.clone());
-        refit_all(model, p)?;
+        let (c, fitted) = choose(model, p, &d, &name)?;
+        *model = fitted;
         steps.push(AutoStep {
             step: steps.len(),
-            added: Some(name),
+            added: Some(c.effect.clone()),
+            replaced: None,
             score: score(model, p),
             validation: validation.map(|v| score(model, v)),
             p_value: Some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
     }
+}
+
+/// Weight of the per-parameter penalty ln n in `--auto`'s model comparisons: twice BIC's.
+/// The residual of a closed-loop record is not white (Ljung–Box rejects even at the noise
+/// floor), so n overstates the independent samples and plain BIC lets an extra column buy a
+/// few units of RSS with structure that is not a physical effect (asymmetry's second column
+/// where offset + Coulomb is the truth).
+const PENALTY: f64 = 2.0;
+
+/// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
+/// Stribeck velocity, dead-zone width, backlash width, quantum).
+fn spent_params(kind: EffectKind, df: usize) -> usize {
+    df + match kind {
+        EffectKind::Ripple
+        | EffectKind::Stribeck
+        | EffectKind::Deadband
+        | EffectKind::Backlash
+        | EffectKind::Quantization
+        | EffectKind::Cogging => 1,
+        _ => 0,
+    }
+}
+
+/// Which significant candidate `--auto` adds: the diagnosis ranks by the error reduction at a
+/// grid shape, without shape refinement and without charging for parameters. Between the
+/// leading significant candidates (at most three), each is added and fully refitted, and the
+/// one with the lowest BIC, n·ln(RSS/n) + k·ln n, wins — the one-column effect when two
+/// explain the residual comparably (gravity vs ripple, Coulomb vs asymmetry).
+fn choose(
+    model: &Model,
+    p: &Prepared,
+    d: &Diagnosis,
+    verdict: &str,
+) -> Result<(diagnose::Candidate, Model), fit::FitError> {
+    let n = p.len() as f64;
+    let spent = |c: &diagnose::Candidate| c.kind.map_or(usize::MAX, |k| spent_params(k, c.df));
+    let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
+        return Err(fit::FitError::NonFinite);
+    };
+    // Only simpler (or equally simple) alternatives may displace the verdict: BIC's penalty
+    // is too light to stop a flexible, input-based fingerprint from fitting what two true
+    // effects leave together.
+    let mut pool: Vec<&diagnose::Candidate> = vec![top];
+    pool.extend(
+        d.candidates
+            .iter()
+            .filter(|c| c.significant && c.effect != verdict && spent(c) <= spent(top))
+            .take(2),
+    );
+    let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
+    for c in pool {
+        let kind = c.kind.expect("kind");
+        let mut m = model.clone();
+        m.add(kind, c.shape.clone());
+        refit_all(&mut m, p)?;
+        let rss: f64 = residual::equation_error(&m, p)
+            .residual
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        let bic =
+            n * (rss / n).max(1e-300).ln() + PENALTY * spent_params(kind, c.df) as f64 * n.ln();
+        if best.as_ref().is_none_or(|b| bic < b.0) {
+            best = Some((bic, c.clone(), m));
+        }
+    }
+    let (_, c, m) = best.expect("the verdict is a candidate");
+    Ok((c, m))
+}
+
+/// BIC of a fitted model on `p`: n·ln(RSS/n) + k·ln n, k = inertia + every effect's
+/// [`spent_params`].
+fn bic(m: &Model, p: &Prepared) -> f64 {
+    let n = p.len() as f64;
+    let rss: f64 = residual::equation_error(m, p)
+        .residual
+        .iter()
+        .map(|v| v * v)
+        .sum();
+    let k: usize = 1 + m
+        .effects
+        .iter()
+        .map(|e| spent_params(e.kind, e.params.len()))
+        .sum::<usize>();
+    n * (rss / n).max(1e-300).ln() + PENALTY * k as f64 * n.ln()
+}
+
+/// Whether a fitted `new` effect contains `old` as a special case (a ripple of period 2π is
+/// gravity), so that replacing `old` by `new` is a nested comparison BIC can judge.
+fn nests(new: EffectKind, old: EffectKind) -> bool {
+    new == EffectKind::Ripple && old == EffectKind::Gravity
+}
+
+/// The closing swap pass of `--auto`: greedy addition can take an effect whose columns span
+/// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
+/// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
+/// against the current model, the best one taken, repeated while one improves (at most three):
+/// remove an added effect; replace it by another candidate that was significant at some step
+/// and spends no more parameters (or nests it); replace it by two such candidates spending no
+/// more parameters together. Returns the (added, removed) names of each move (added `None`:
+/// a removal).
+fn swap_pass(
+    model: &mut Model,
+    p: &Prepared,
+    start_len: usize,
+    seen: &[diagnose::Candidate],
+) -> Result<Vec<(Option<String>, String)>, fit::FitError> {
+    let mut moves = Vec::new();
+    for _ in 0..3 {
+        let current = bic(model, p);
+        let mut best: Option<(f64, Model, Option<String>, String)> = None;
+        let mut consider = |m: Model, added: Option<String>, replaced: String| {
+            let b = bic(&m, p);
+            if b < current && best.as_ref().is_none_or(|x| b < x.0) {
+                best = Some((b, m, added, replaced));
+            }
+        };
+        for i in start_len..model.effects.len() {
+            let old = &model.effects[i];
+            let (old_kind, old_spent) = (old.kind, spent_params(old.kind, old.params.len()));
+            let mut base = model.clone();
+            base.effects.remove(i);
+            let mut m = base.clone();
+            refit_all(&mut m, p)?;
+            consider(m, None, old_kind.name().into());
+            let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
+                .iter()
+                .filter_map(|c| c.kind.map(|k| (c, k)))
+                .filter(|(_, k)| !model.has(*k))
+                .collect();
+            for (a, ka) in &fresh {
+                let sa = spent_params(*ka, a.df);
+                if (sa > old_spent || !a.significant) && !nests(*ka, old_kind) {
+                    continue;
+                }
+                let mut m = base.clone();
+                m.add(*ka, a.shape.clone());
+                refit_all(&mut m, p)?;
+                consider(m, Some(a.effect.clone()), old_kind.name().into());
+                for (b, kb) in &fresh {
+                    if kb <= ka || !b.significant || sa + spent_params(*kb, b.df) > old_spent {
+                        continue;
+                    }
+                    let mut m = base.clone();
+                    m.add(*ka, a.shape.clone());
+                    m.add(*kb, b.shape.clone());
+                    refit_all(&mut m, p)?;
+                    consider(
+                        m,
+                        Some(format!("{} + {}", a.effect, b.effect)),
+                        old_kind.name().into(),
+                    );
+                }
+            }
+        }
+        match best {
+            Some((_, m, added, replaced)) => {
+                *model = m;
+                moves.push((added, replaced));
+            }
+            None => break,
+        }
+    }
+    Ok(moves)
+}
+
+/// The delay probe of `--auto`, once the diagnosis finds nothing more. The diagnosis tests a
+/// delay with a column built from the motion-based instrument (its only safe choice against
+/// the input's own noise), which has little power for a delay of a few samples behind a
+/// stronger effect. The refit's τ search on the measured input (see `search_shapes`) has
+/// no such bias — shifting white noise does not change its sum of squares — so the delay is
+/// added if that search removes at least `min_err` of the residual and `min_rho` × the noise
+/// floor of RMS, and lowers the (doubled-penalty) BIC.
+fn delay_probe(
+    model: &Model,
+    p: &Prepared,
+    opts: &Options,
+) -> Result<Option<(Model, String)>, fit::FitError> {
+    if model.has(EffectKind::Delay) {
+        return Ok(None);
+    }
+    let rss = |m: &Model| -> f64 {
+        residual::equation_error(m, p)
+            .residual
+            .iter()
+            .map(|v| v * v)
+            .sum()
+    };
+    let r0 = rss(model);
+    let mut m = model.clone();
+    m.add(
+        EffectKind::Delay,
+        Shape {
+            smoothing: 1,
+            ..Shape::default()
+        },
+    );
+    refit_all(&mut m, p)?;
+    let r1 = rss(&m);
+    let n = p.len() as f64;
+    let err = (r0 - r1) / r0.max(1e-300);
+    let explained = ((r0 - r1).max(0.0) / n).sqrt();
+    let tau = m.effects.last().map_or(0.0, |e| e.shape.delay);
+    if tau > 0.0
+        && err >= opts.min_err
+        && explained >= opts.min_rho * p.noise_floor
+        && bic(&m, p) < bic(model, p)
+    {
+        let text = format!(
+            "add delay (τ = {:.2} ms by search on the measured input; explains {:.1} % of the residual)",
+            1e3 * tau,
+            100.0 * err
+        );
+        return Ok(Some((m, text)));
+    }
+    Ok(None)
 }

@@ -11,7 +11,7 @@
 //!   axis is a pure integrator, so on long open-loop records small force errors accumulate into
 //!   drift — the report says which residual it shows.
 
-use sim_plant::effects::{fingerprint, Trajectory};
+use sim_plant::effects::{fingerprint, EffectKind, Shape, Trajectory};
 
 use super::data::Recording;
 use super::diff;
@@ -152,16 +152,97 @@ fn instrument(p: &Prepared) -> Vec<f64> {
     }
 }
 
+/// Whether `kind`'s fingerprint columns get the input's zero-phase low-pass ("parallel
+/// filtering"): the measured input is filtered (see [`Prepared::input`]), so a torque that is
+/// a *nonlinear* function of the motion (a sign at each reversal, a short-period ripple)
+/// reaches the residual band-limited; its column must be too, or every sharp edge leaves a
+/// residual spike. Columns already built from filtered signals (v, derivatives of the filtered
+/// position, the instrument: delay, dead zone, quantiser; backlash, built from the filtered
+/// motion) and constants are left as they are (filtering the instrument-based dead-zone
+/// columns again made them fit null records; filtering backlash cost it rank 1 in the bench).
+fn filtered(kind: EffectKind) -> bool {
+    !matches!(
+        kind,
+        EffectKind::Offset
+            | EffectKind::Viscous
+            | EffectKind::Compliance
+            | EffectKind::Delay
+            | EffectKind::Deadband
+            | EffectKind::Quantization
+            | EffectKind::Backlash
+    )
+}
+
+fn band_limit(kind: EffectKind, t: &Trajectory, mut z: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+    if filtered(kind) && t.dt > 0.0 && t.lowpass_hz > 0.0 {
+        for c in &mut z {
+            *c = diff::filtfilt(c, t.lowpass_hz, 1.0 / t.dt);
+        }
+    }
+    z
+}
+
+/// Fingerprint columns of a *candidate* effect on prepared data, as the diagnosis tests them
+/// (input-based columns from the instrument, nonlinear columns band-limited like the input).
+pub fn candidate_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f64>> {
+    candidate_columns_on(kind, &p.trajectory(), shape)
+}
+
+/// [`candidate_columns`] on a trajectory (the diagnosis searches shapes on a window of a long
+/// record).
+pub fn candidate_columns_on(kind: EffectKind, t: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
+    band_limit(kind, t, fingerprint(kind, t, shape))
+}
+
+/// Fingerprint columns of an effect *in the model*. As [`candidate_columns`], except that a
+/// delay acts on the measured input: once its τ is fitted (by a 1-D search, see
+/// [`super::refine`]; its amplitude is never a free least-squares column, see [`design`]),
+/// the model's prediction is the input actually delayed, `û = u − (u − u(t − τ))`.
+pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f64>> {
+    if kind == EffectKind::Delay {
+        let t = Trajectory {
+            input: &p.input,
+            ..p.trajectory()
+        };
+        return fingerprint(kind, &t, shape);
+    }
+    candidate_columns(kind, p, shape)
+}
+
 /// Regressor columns of every parameter of a model, in [`Model::params`] order.
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
-    let t = p.trajectory();
     let mut cols = vec![p.acceleration.clone()];
-    for e in &model.effects {
-        let mut c = fingerprint(e.kind, &t, &e.shape);
+    let per: Vec<Vec<Vec<f64>>> = std::thread::scope(|sc| {
+        let hs: Vec<_> = model
+            .effects
+            .iter()
+            .map(|e| {
+                if filtered(e.kind) && model.effects.len() > 1 {
+                    Err(sc.spawn(move || model_columns(e.kind, p, &e.shape)))
+                } else {
+                    Ok(e)
+                }
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| match h {
+                Ok(e) => model_columns(e.kind, p, &e.shape),
+                Err(h) => h.join().expect("column worker"),
+            })
+            .collect()
+    });
+    for (e, mut c) in model.effects.iter().zip(per) {
         c.resize(e.params.len(), vec![0.0; p.len()]);
         cols.extend(c);
     }
     cols
+}
+
+/// Whether a parameter is fitted by linear least squares: free, and not a delay (a delay's
+/// column holds the measured input, whose noise would bias a least-squares amplitude; τ is
+/// fitted by a 1-D search on the delayed input instead).
+fn ls_free(kind: Option<EffectKind>, free: bool) -> bool {
+    free && kind != Some(EffectKind::Delay)
 }
 
 /// The free-parameter regression: columns of free parameters and the input minus the
@@ -180,11 +261,19 @@ pub struct Design {
 pub fn design(model: &Model, p: &Prepared) -> Design {
     let all = columns(model, p);
     let params = model.params();
+    let owner: Vec<Option<EffectKind>> = std::iter::once(None)
+        .chain(
+            model
+                .effects
+                .iter()
+                .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
+        )
+        .collect();
     let mut y = p.input.clone();
     let mut cols = Vec::new();
     let mut free = Vec::new();
     for (i, (c, par)) in all.into_iter().zip(params).enumerate() {
-        if par.free {
+        if ls_free(owner[i], par.free) {
             cols.push(c);
             free.push(i);
         } else {

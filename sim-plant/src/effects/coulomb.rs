@@ -7,7 +7,9 @@
 //!
 //! Fingerprint: `[sign_ε(v)]`, a sign with a linear zone |v| < ε (`Shape::sign_epsilon`)
 //! because measured velocity near zero is quantisation noise (thesis-notes §7.1: residual
-//! ±τc flipping at reversals; torque-position loop 2τc wide).
+//! ±τc flipping at reversals; torque-position loop 2τc wide). A fitter may shift the switch
+//! by a small time lead (`Shape::sign_lead`, the sign of v + lead·a): real (dynamic) friction
+//! reverses over a pre-sliding displacement, not exactly at the measured v = 0.
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
@@ -33,12 +35,14 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     laws.friction.coulomb_neg += p.torque.value;
 }
 
-/// `[sign_ε(v)]`.
+/// `[sign_ε(v + lead·a)]` (lead = `Shape::sign_lead`, 0 by default: `[sign_ε(v)]`).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    let eps = shape.sign_epsilon;
-    vec![traj.velocity[..traj.len()]
+    let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
+    let n = traj.len();
+    vec![traj.velocity[..n]
         .iter()
-        .map(|&v| smooth_sign(v, eps))
+        .zip(&traj.acceleration[..n])
+        .map(|(&v, &a)| smooth_sign(v + lead * a, eps))
         .collect()]
 }
 

@@ -156,6 +156,11 @@ pub struct Shape {
     pub compliance_frequency: f64,
     /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
     pub compliance_damping: f64,
+    /// Coulomb: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
+    /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
+    /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
+    /// to a few milliseconds (negative = lag). 0 = the static sign(v).
+    pub sign_lead: f64,
 }
 
 impl Default for Shape {
@@ -175,6 +180,7 @@ impl Default for Shape {
             smoothing: 5,
             compliance_frequency: 20.0,
             compliance_damping: 0.05,
+            sign_lead: 0.0,
         }
     }
 }

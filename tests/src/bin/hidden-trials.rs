@@ -2,10 +2,11 @@
 //! null false-alarm rate, refit-to-noise-floor rate, pair (`--auto`) rate.
 //!
 //! ```sh
-//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED] [FAMILIES]
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
+//!     [--family a,b | --pairs-only | --nulls-only]
 //! ```
-//! `FAMILIES` (comma-separated names) restricts the single-effect trials to those families and
-//! skips the pair trials; the null trials always run.
+//! `--family` runs only those single-effect families, `--pairs-only` only the `--auto` pairs,
+//! `--nulls-only` only the null trials (quick iteration); seeds are the same as in a full run.
 //! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
 
 use std::collections::BTreeMap;
@@ -14,18 +15,30 @@ use std::time::Instant;
 use jointlab_tests::hidden::{run, Family, Outcome};
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    // Flags (for quick iteration): `--family a,b` runs only those single-effect families (no
+    // nulls, no pairs); `--pairs-only`; `--nulls-only`.
+    let raw: Vec<String> = std::env::args().skip(1).collect();
+    let mut only: Option<Vec<String>> = None;
+    let (mut singles, mut with_nulls, mut with_pairs) = (true, true, true);
+    let mut positional = Vec::new();
+    let mut it = raw.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--family" => {
+                only = it
+                    .next()
+                    .map(|v| v.split(',').map(str::to_string).collect());
+                with_nulls = false;
+                with_pairs = false;
+            }
+            "--pairs-only" => (singles, with_nulls) = (false, false),
+            "--nulls-only" => (singles, with_pairs) = (false, false),
+            _ => positional.push(a.clone()),
+        }
+    }
+    let mut args = positional.into_iter();
     let trials: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(200);
     let seed0: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
-    // Optional third argument: comma-separated families to run (nulls always run; pairs only
-    // without a filter), e.g. `hidden-trials 12 1 compliance,quantization`.
-    let only: Option<Vec<String>> = args
-        .next()
-        .map(|s| s.split(',').map(|x| x.trim().to_string()).collect());
-    let selected = |f: &Family| {
-        only.as_ref()
-            .is_none_or(|o| o.iter().any(|n| n == f.name()))
-    };
     let rhos = [0.5, 1.0, 2.0, 4.0];
     // `hidden-trials one FAMILY SEED RHO`: run and print a single trial (debugging aid).
     if std::env::args().nth(1).as_deref() == Some("one") {
@@ -50,7 +63,11 @@ fn main() {
     // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
     let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
     for (fi, f) in Family::ALL.iter().enumerate() {
-        if !selected(f) {
+        if !singles
+            || only
+                .as_ref()
+                .is_some_and(|o| !o.iter().any(|n| n == f.name()))
+        {
             continue;
         }
         for i in 0..trials {
@@ -62,10 +79,10 @@ fn main() {
             ));
         }
     }
-    for i in 0..trials {
+    for i in 0..if with_nulls { trials } else { 0 } {
         jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
     }
-    for i in 0..if only.is_some() { 0 } else { trials / 2 } {
+    for i in 0..if with_pairs { trials / 2 } else { 0 } {
         let (a, b) = pair_fams[i % pair_fams.len()];
         jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
     }
@@ -187,7 +204,7 @@ fn main() {
         "\nnull trials: {} of {} flagged a missing effect (false-alarm rate {:.1} %)",
         fa,
         nulls.len(),
-        100.0 * fa as f64 / nulls.len() as f64
+        100.0 * fa as f64 / nulls.len().max(1) as f64
     );
     let mut fa_by: BTreeMap<String, usize> = BTreeMap::new();
     for o in nulls.iter().filter(|o| !o.null_ok()) {

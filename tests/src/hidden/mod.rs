@@ -422,9 +422,12 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
             Family::Quantization => 3.5 * floor_est,
         };
         // Two secant steps on the amplitude for the target strength (ρ is ~linear in it).
+        // Each effect is calibrated on the effect-free plant, *on its own*: calibrating the
+        // second of a pair on a plant that already carries the first would scale the pair's
+        // combined strength to the target and leave the second effect far weaker.
         let mut a = a0;
         for _ in 0..2 {
-            let p = with_effect(&d, &plant, f, a, travel);
+            let p = with_effect(&d, &base, f, a, travel);
             let r = record(&p, &d.est, "calib");
             let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
             let rr = rho(b, floor_est);
@@ -539,11 +542,38 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
             let mut m = model.clone();
             let r = refine::fit_add(&mut m, &pe, Some(families[0].kind()), Some(&pv)).ok()?;
             out.val_ratio = r.after_validation.expect("validation").rms / t.floor_val;
+            if std::env::var_os("HIDDEN_DEBUG").is_some() {
+                eprintln!(
+                    "fit --add {}: estimation RMS/floor {:.3}, validation {:.3}; {:?}",
+                    families[0].name(),
+                    r.after.rms / t.floor_est,
+                    out.val_ratio,
+                    r.params
+                );
+                for e in &m.effects {
+                    eprintln!(
+                        "  {}: sign ε {:.3e}, lead {:.2e} s",
+                        e.kind.name(),
+                        e.shape.sign_epsilon,
+                        e.shape.sign_lead
+                    );
+                }
+            }
         }
         2 => {
             let mut m = model.clone();
             let run = refine::auto(&mut m, &pe, Some(&pv), &opts, 6).ok()?;
-            out.auto_added = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+            // What the final model holds beyond the start (a swap may have replaced one).
+            out.auto_added = m.effects[model.effects.len()..]
+                .iter()
+                .map(|e| e.kind.name().to_string())
+                .collect();
+            if std::env::var_os("HIDDEN_DEBUG").is_some() {
+                for s in &run.steps {
+                    eprintln!("step {}: {:?} rms {:.4e}", s.step, s.added, s.score.rms);
+                }
+                eprintln!("last:\n{}", run.last.to_text());
+            }
             out.val_ratio = run
                 .steps
                 .last()
