@@ -120,7 +120,7 @@ pub struct Shape {
     /// Compliance, delay: length (samples) of the moving average that smooths signals before
     /// they are differentiated.
     pub smoothing: usize,
-    /// Coulomb: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
+    /// Coulomb, asymmetry: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
     /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
     /// to a few milliseconds (negative = lag). 0 = the static sign(v).
