@@ -234,7 +234,31 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 /// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step) and around
 ///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
 ///   the RSS oscillates in the period and LM only finds the nearest minimum.
+///
+/// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
+    search_each(model, p);
+    // Direction-dependent friction switches with the Coulomb friction: an asymmetry next to a
+    // Coulomb term takes its sign shape (an independent one would buy reversal-shape freedom
+    // with the second sign column and stand in for an offset).
+    let sign = model
+        .effects
+        .iter()
+        .find(|e| e.kind == EffectKind::Coulomb)
+        .map(|e| (e.shape.sign_epsilon, e.shape.sign_lead));
+    if let Some((eps, lead)) = sign {
+        for e in model
+            .effects
+            .iter_mut()
+            .filter(|e| e.kind == EffectKind::Asymmetry)
+        {
+            e.shape.sign_epsilon = eps;
+            e.shape.sign_lead = lead;
+        }
+    }
+}
+
+fn search_each(model: &mut Model, p: &Prepared) {
     let dt = p.dt;
     for e in 0..model.effects.len() {
         let entry = &model.effects[e];

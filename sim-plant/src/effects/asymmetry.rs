@@ -39,12 +39,17 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     f.excess_pos += p.stiction_extra.value;
 }
 
-/// `[step_ε(v), max(v, 0)]`.
+/// `[step_ε(v + lead·a), max(v, 0)]` (lead = `Shape::sign_lead`, 0 by default; a fitter
+/// gives it Coulomb's, so both friction levels switch at the same moment).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
-    let v = &traj.velocity[..traj.len()];
-    let eps = shape.sign_epsilon;
+    let n = traj.len();
+    let v = &traj.velocity[..n];
+    let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     vec![
-        v.iter().map(|&v| 0.5 * (1.0 + smooth_sign(v, eps))).collect(),
+        v.iter()
+            .zip(&traj.acceleration[..n])
+            .map(|(&v, &a)| 0.5 * (1.0 + smooth_sign(v + lead * a, eps)))
+            .collect(),
         v.iter().map(|&v| v.max(0.0)).collect(),
     ]
 }

@@ -156,7 +156,7 @@ pub struct Shape {
     pub compliance_frequency: f64,
     /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
     pub compliance_damping: f64,
-    /// Coulomb: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
+    /// Coulomb, asymmetry: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
     /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
     /// to a few milliseconds (negative = lag). 0 = the static sign(v).
