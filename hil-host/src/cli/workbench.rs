@@ -10,7 +10,7 @@ use crate::workbench::data::{self, Columns};
 use crate::workbench::diagnose::{self, Options};
 use crate::workbench::metrics;
 use crate::workbench::model::Model;
-use crate::workbench::refine::{self, AutoRun, FitReport};
+use crate::workbench::refine::{self, AutoRun, AutoStep, FitReport};
 use crate::workbench::report::{self, Chart, Series};
 use crate::workbench::residual::{self, Mode, Prepared};
 
@@ -248,20 +248,29 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
 }
 
 fn auto_text(run: &AutoRun) -> String {
+    let label = |st: &AutoStep| match (&st.added, &st.replaced) {
+        (Some(a), Some(r)) => format!("{a} (for {r})"),
+        (Some(a), None) => a.clone(),
+        (None, Some(r)) => format!("(remove {r})"),
+        _ => "(start)".into(),
+    };
+    // The "added" column is as wide as its longest entry (a swap reads "x + y (for z)").
+    let w = run
+        .steps
+        .iter()
+        .map(|st| label(st).chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(13);
     let mut s = format!(
-        "{:>4}  {:<13} {:>9} {:>12} {:>10} {:>12} {:>10}\n",
+        "{:>4}  {:<w$} {:>9} {:>12} {:>10} {:>12} {:>10}\n",
         "step", "added", "fit %", "RMS", "Holm p", "val RMS", "val fit %"
     );
     for st in &run.steps {
         s.push_str(&format!(
-            "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
+            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
             st.step,
-            match (&st.added, &st.replaced) {
-                (Some(a), Some(r)) => format!("{a} (for {r})"),
-                (Some(a), None) => a.clone(),
-                (None, Some(r)) => format!("(remove {r})"),
-                _ => "(start)".into(),
-            },
+            label(st),
             st.score.fit_percent,
             st.score.rms,
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),

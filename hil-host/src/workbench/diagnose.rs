@@ -144,6 +144,8 @@ pub struct Diagnosis {
     pub verdict: Verdict,
     /// Effects that could not be tested on this record, with why.
     pub untestable: Vec<String>,
+    /// Tested and ranked, but held back from the verdict, with why.
+    pub notes: Vec<String>,
 }
 
 struct Scan {
@@ -401,6 +403,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     };
 
     let mut untestable = Vec::new();
+    let mut notes = Vec::new();
     let mut scans = Vec::new();
     // The shape scans are independent: run them on the available cores.
     let kinds: Vec<EffectKind> = EffectKind::ALL
@@ -496,9 +499,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             && explained_rms >= opts.min_rho * p.noise_floor
             && resolved;
         if !resolved && c.err > 0.0 {
-            untestable.push(format!(
+            notes.push(format!(
                 "{}: best shape at the edge of what this record resolves (a transmission mode \
-                 above its bandwidth); ranked, not significant",
+                 above its bandwidth); ranked, never a verdict",
                 c.effect
             ));
         }
@@ -566,6 +569,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         candidates: cands,
         verdict,
         untestable,
+        notes,
     }
 }
 
@@ -578,6 +582,7 @@ impl Diagnosis {
             "candidates": self.candidates,
             "verdict": self.verdict,
             "untestable": self.untestable,
+            "notes": self.notes,
         })
     }
 
@@ -613,6 +618,9 @@ impl Diagnosis {
         }
         for u in &self.untestable {
             let _ = writeln!(s, "not tested: {u}");
+        }
+        for u in &self.notes {
+            let _ = writeln!(s, "note: {u}");
         }
         let _ = writeln!(s, "verdict: {}", self.verdict.text);
         s

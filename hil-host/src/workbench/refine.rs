@@ -690,6 +690,9 @@ fn choose(
     Ok((c, m))
 }
 
+/// BIC decrease a closing swap must achieve (2: "positive evidence" on Kass & Raftery's scale).
+const SWAP_MARGIN: f64 = 2.0;
+
 /// BIC of a fitted model on `p`: n·ln(RSS/n) + k·ln n, k = inertia + every effect's
 /// [`spent_params`].
 fn bic(m: &Model, p: &Prepared) -> f64 {
@@ -729,7 +732,10 @@ fn swap_pass(
 ) -> Result<Vec<(Option<String>, String)>, fit::FitError> {
     let mut moves = Vec::new();
     for _ in 0..3 {
-        let current = bic(model, p);
+        // A move must lower BIC by a margin: two models that span the same columns (Coulomb +
+        // asymmetry vs offset + asymmetry) tie up to rounding, and trading a physical effect
+        // for its equivalent on a rounding difference only confuses the reader.
+        let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
             let b = bic(&m, p);
