@@ -403,11 +403,33 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     // Coordinate golden sections in the logarithms.
     let set_lf = |m: &mut Model, e: usize, x: f64| set_mode_frequency(m, e, x.exp().min(f_max));
     let set_lz = |m: &mut Model, e: usize, x: f64| set_mode_damping(m, e, x.exp());
-    for _ in 0..3 {
+    let polish = |model: &mut Model| {
         let lf = model.effects[e].shape.compliance_frequency.ln();
         golden(model, p, e, (lf - 0.1, lf + 0.1), lf, 12, &set_lf);
         let lz = model.effects[e].shape.compliance_damping.ln();
         golden(model, p, e, (lz - 0.4, lz + 0.4), lz, 12, &set_lz);
+    };
+    for _ in 0..2 {
+        polish(model);
+    }
+    // Then the motion form of the column (`J1·H₂·a`, no command noise in it), whose split
+    // J1 = J/(1 + J2/J1) comes from the current fit: a fixed-point iteration, the mode
+    // re-polished at each step; kept only if it fits better than the command form.
+    let command_form = model.clone();
+    let r0 = ls_rss(&mut model.clone(), p);
+    for _ in 0..3 {
+        let ratio = (-model.effects[e].params[0].value).max(0.0);
+        let j1 = model.inertia.value / (1.0 + ratio);
+        if !(j1 > 0.0 && j1.is_finite()) {
+            break;
+        }
+        model.effects[e].shape.compliance_near_inertia = j1;
+        model.effects[e].shape.compliance_ratio = ratio;
+        ls_rss(model, p);
+        polish(model);
+    }
+    if ls_rss(&mut model.clone(), p) >= r0 {
+        *model = command_form;
     }
 }
 

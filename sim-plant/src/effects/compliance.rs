@@ -99,6 +99,9 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     if n < 8 || traj.dt <= 0.0 {
         return vec![vec![0.0; n]];
     }
+    if shape.compliance_near_inertia > 0.0 {
+        return vec![motion_column(traj, shape)];
+    }
     let (u, window) = traj.recorded_input();
     let hp = highpass2(
         u,
@@ -107,6 +110,28 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         1.0 / traj.dt,
     );
     vec![traj.lowpass(&hp)[window].to_vec()]
+}
+
+/// The motion form of the column, `J1·H₂(s)·a1`, with H₂ the high-pass at the locked-motor
+/// (load-side) mode ω₂² = K/J2 = ω²/(1 + J2/J1), 2ζ₂ω₂ = c/J2: the same residual
+/// `−J2·H₂·a1 = −(J2/J1)·H·u` of the 2-mass plant written with the measured motion instead of
+/// the command, so the command's own noise does not enter the column (the fit of `H·u` to
+/// `r` pays |J2/J1|× the command noise in the mode's band). The acceleration is already
+/// low-passed as the residual was; a mirrored pre-roll stands in for its history.
+fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
+    let n = traj.len();
+    let s = (1.0 + shape.compliance_ratio.max(0.0)).sqrt();
+    let (f2, z2) = (shape.compliance_frequency / s, shape.compliance_damping / s);
+    let a = &traj.acceleration[..n];
+    let tau = 1.0 / (std::f64::consts::TAU * f2 * z2.max(1e-3)).max(1e-9);
+    let pre = ((5.0 * tau / traj.dt).ceil() as usize).clamp(1, n - 1);
+    let mut x: Vec<f64> = a[1..=pre].iter().rev().copied().collect();
+    x.extend_from_slice(a);
+    let hp = highpass2(&x, f2, z2, 1.0 / traj.dt);
+    hp[pre..]
+        .iter()
+        .map(|v| shape.compliance_near_inertia * v)
+        .collect()
 }
 
 /// Lowest mode frequency searched (Hz): below it a transmission mode is inside the motion band

@@ -156,6 +156,13 @@ pub struct Shape {
     pub compliance_frequency: f64,
     /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
     pub compliance_damping: f64,
+    /// Compliance: 0 = the column is built from the recorded command (the diagnosis's form);
+    /// > 0 = the motor-side inertia J1 of the fitted split, and the column is the motion form
+    /// `J1·H₂(s)·a` (see the module; the refit's form, free of the command's noise).
+    pub compliance_near_inertia: f64,
+    /// Compliance, motion form: the inertia ratio J2/J1 that places the locked-motor mode
+    /// ω₂ = ω/√(1 + J2/J1), ζ₂ = ζ/√(1 + J2/J1).
+    pub compliance_ratio: f64,
     /// Coulomb, asymmetry: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
     /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
@@ -180,6 +187,8 @@ impl Default for Shape {
             smoothing: 5,
             compliance_frequency: 20.0,
             compliance_damping: 0.05,
+            compliance_near_inertia: 0.0,
+            compliance_ratio: 0.0,
             sign_lead: 0.0,
         }
     }
