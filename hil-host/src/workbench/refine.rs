@@ -412,25 +412,71 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     for _ in 0..2 {
         polish(model);
     }
-    // Then the motion form of the column (`J1·H₂·a`, no command noise in it), whose split
-    // J1 = J/(1 + J2/J1) comes from the current fit: a fixed-point iteration, the mode
-    // re-polished at each step; kept only if it fits better than the command form.
+    // Then the motion form of the column (`J1·H₂·a`, no command noise in it), searched in its
+    // own coordinates: with unit J1 and no ratio the column is `H₂·a` at the locked-motor mode
+    // (f₂, ζ₂) and its amplitude is −J2, linear. The same joint grid and golden sections, then
+    // the split J1 = J − J2 maps it back to the coupled mode (f = f₂·√(1 + J2/J1)) and the
+    // amplitude −J2/J1; the load's viscous friction then enters as (J2·s + b)². Kept only if
+    // it fits better than the command form.
     let command_form = model.clone();
     let r0 = ls_rss(&mut model.clone(), p);
-    for _ in 0..3 {
-        let ratio = (-model.effects[e].params[0].value).max(0.0);
-        let j1 = model.inertia.value / (1.0 + ratio);
-        if !(j1 > 0.0 && j1.is_finite()) {
-            break;
+    let mut m = model.clone();
+    {
+        let sh = &mut m.effects[e].shape;
+        sh.compliance_near_inertia = 1.0;
+        sh.compliance_ratio = 0.0;
+        sh.compliance_load_damping = 0.0;
+    }
+    let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
+    freqs2.extend(&freqs);
+    freqs2.retain(|&f| f > 0.5);
+    let mut best: Option<(f64, Model)> = None;
+    for &z in &zetas {
+        let mut mm = m.clone();
+        set_mode_damping(&mut mm, e, z);
+        let (_, r) = line_search(&mut mm, p, e, &freqs2, &set_mode_frequency);
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, mm));
         }
-        model.effects[e].shape.compliance_near_inertia = j1;
-        model.effects[e].shape.compliance_ratio = ratio;
-        ls_rss(model, p);
-        polish(model);
     }
-    if ls_rss(&mut model.clone(), p) >= r0 {
-        *model = command_form;
+    if let Some((_, mm)) = best {
+        m = mm;
     }
+    for _ in 0..2 {
+        polish(&mut m);
+    }
+    let rm = ls_rss(&mut m, p);
+    let j2 = -m.effects[e].params[0].value;
+    let j1 = m.inertia.value - j2;
+    if std::env::var_os("JL_DEBUG_COMPLIANCE").is_some() {
+        eprintln!(
+            "compliance motion: r0 {r0:.4e} rm {rm:.4e} J2 {j2:.3e} J1 {j1:.3e} f2 {:.2} z2 {:.3}",
+            m.effects[e].shape.compliance_frequency, m.effects[e].shape.compliance_damping
+        );
+    }
+    if j2 > 0.0 && j1 > 0.0 && j2.is_finite() {
+        let ratio = j2 / j1;
+        let b = m
+            .effects
+            .iter()
+            .find(|x| x.kind == EffectKind::Viscous)
+            .and_then(|x| x.params.first())
+            .map_or(0.0, |q| q.value);
+        let sh = &mut m.effects[e].shape;
+        let s = (1.0 + ratio).sqrt();
+        sh.compliance_frequency *= s;
+        sh.compliance_damping *= s;
+        sh.compliance_near_inertia = j1;
+        sh.compliance_ratio = ratio;
+        sh.compliance_load_damping = b.max(0.0);
+        ls_rss(&mut m, p);
+        polish(&mut m);
+        if ls_rss(&mut m.clone(), p) < r0 {
+            *model = m;
+            return;
+        }
+    }
+    *model = command_form;
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {

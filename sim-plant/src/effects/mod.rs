@@ -163,6 +163,9 @@ pub struct Shape {
     /// Compliance, motion form: the inertia ratio J2/J1 that places the locked-motor mode
     /// ω₂ = ω/√(1 + J2/J1), ζ₂ = ζ/√(1 + J2/J1).
     pub compliance_ratio: f64,
+    /// Compliance, motion form: viscous friction b on the load side (torque per velocity),
+    /// which shapes the column as (J2·s + b)².
+    pub compliance_load_damping: f64,
     /// Coulomb, asymmetry: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
     /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
@@ -189,6 +192,7 @@ impl Default for Shape {
             compliance_damping: 0.05,
             compliance_near_inertia: 0.0,
             compliance_ratio: 0.0,
+            compliance_load_damping: 0.0,
             sign_lead: 0.0,
         }
     }
