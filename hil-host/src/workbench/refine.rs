@@ -7,9 +7,10 @@
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
 //! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
-//! Before LM, three searches least squares cannot do (see `search_shapes`): a delay's τ on the
-//! input actually delayed, Coulomb's sign lead and smoothing, and the ripple period on a fine
-//! grid.
+//! Before LM, searches least squares cannot do (see `search_shapes`): a delay's τ on the
+//! input actually delayed, Coulomb's sign lead and smoothing, the ripple period on a fine
+//! grid, the compliance mode (and the motion form of its column), the quantiser step and the
+//! blur of its sawtooth.
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -235,6 +236,11 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
 ///   the RSS oscillates in the period and LM only finds the nearest minimum.
 ///
+/// * **Compliance**: the mode (f, ζ) by a joint grid and golden sections, in the command form
+///   and in the motion form of the column (see `search_compliance`).
+/// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
+///   `search_quantum`).
+///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
     search_each(model, p);
@@ -445,15 +451,9 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     for _ in 0..2 {
         polish(&mut m);
     }
-    let rm = ls_rss(&mut m, p);
+    ls_rss(&mut m, p);
     let j2 = -m.effects[e].params[0].value;
     let j1 = m.inertia.value - j2;
-    if std::env::var_os("JL_DEBUG_COMPLIANCE").is_some() {
-        eprintln!(
-            "compliance motion: r0 {r0:.4e} rm {rm:.4e} J2 {j2:.3e} J1 {j1:.3e} f2 {:.2} z2 {:.3}",
-            m.effects[e].shape.compliance_frequency, m.effects[e].shape.compliance_damping
-        );
-    }
     if j2 > 0.0 && j1 > 0.0 && j2.is_finite() {
         let ratio = j2 / j1;
         let b = m
@@ -510,6 +510,27 @@ fn search_quantum(model: &mut Model, p: &Prepared, e: usize) {
         e,
         (d1 / (1.0 + step), d1 * (1.0 + step)),
         d1,
+        10,
+        &set_quantum,
+    );
+    // The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
+    // section, then Δ once more at that blur.
+    let d = model.effects[e].shape.quantum;
+    let set_blur = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.quantum_blur = x.max(0.0);
+    let blurs: Vec<f64> = [0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.18, 0.25, 0.35]
+        .iter()
+        .map(|r| r * d)
+        .collect();
+    let (b0, _) = line_search(model, p, e, &blurs, &set_blur);
+    let h = 0.03 * d;
+    golden(model, p, e, ((b0 - h).max(0.0), b0 + h), b0, 10, &set_blur);
+    let d = model.effects[e].shape.quantum;
+    golden(
+        model,
+        p,
+        e,
+        (d / (1.0 + 2.0 * step), d * (1.0 + 2.0 * step)),
+        d,
         10,
         &set_quantum,
     );

@@ -146,6 +146,11 @@ pub struct Shape {
     pub input_scale: f64,
     /// Quantization: step of the input (D/A) quantiser, input units; 0 = none.
     pub quantum: f64,
+    /// Quantization: RMS σ of the noise on the recorded command (input units); 0 = none. The
+    /// column is then the sawtooth's expectation given the recorded command, E[u − Q_Δ(u)]
+    /// with u ~ N(recorded, σ²): the sawtooth with its k-th harmonic damped by
+    /// exp(−2π²k²σ²/Δ²).
+    pub quantum_blur: f64,
     /// Delay: the delay τs (s) the column is built for, (u(t) − u(t − τs))/τs; its amplitude
     /// is the delay and equals τs at the best shape. 0 = the derivative u̇ (small delays).
     pub delay: f64,
@@ -186,6 +191,7 @@ impl Default for Shape {
             deadband_width: 0.05,
             input_scale: 1.0,
             quantum: 0.0,
+            quantum_blur: 0.0,
             delay: 0.0,
             smoothing: 5,
             compliance_frequency: 20.0,

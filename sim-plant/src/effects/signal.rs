@@ -224,6 +224,18 @@ mod tests {
     }
 
     #[test]
+    fn biquad2_with_a_pure_s2_numerator_is_the_highpass() {
+        let x: Vec<f64> = (0..500).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
+        let a = biquad2(&x, [1.0, 0.0, 0.0], 30.0, 0.2, 1000.0);
+        let b = highpass2(&x, 30.0, 0.2, 1000.0);
+        assert!(a.iter().zip(&b).all(|(a, b)| (a - b).abs() < 1e-9));
+        // A constant numerator ω² is the unit-gain low-pass: DC passes.
+        let w = std::f64::consts::TAU * 30.0;
+        let dc = biquad2(&[2.0; 50], [0.0, 0.0, w * w], 30.0, 0.2, 1000.0);
+        assert!((dc[49] - 2.0).abs() < 1e-9, "{}", dc[49]);
+    }
+
+    #[test]
     fn filters_pass_and_stop_what_they_should() {
         let fs = 1000.0;
         let tone = |f: f64| -> Vec<f64> {
