@@ -162,8 +162,8 @@ pub struct Shape {
     /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
     pub compliance_damping: f64,
     /// Compliance: 0 = the column is built from the recorded command (the diagnosis's form);
-    /// > 0 = the motor-side inertia J1 of the fitted split, and the column is the motion form
-    /// `J1·H₂(s)·a` (see the module; the refit's form, free of the command's noise).
+    /// positive = the motor-side inertia J1 of the fitted split, and the column is the motion
+    /// form `J1·H₂(s)·a` (see the module; the refit's form, free of the command's noise).
     pub compliance_near_inertia: f64,
     /// Compliance, motion form: the inertia ratio J2/J1 that places the locked-motor mode
     /// ω₂ = ω/√(1 + J2/J1), ζ₂ = ζ/√(1 + J2/J1).
