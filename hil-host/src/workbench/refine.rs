@@ -7,9 +7,10 @@
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
 //! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
-//! Before LM, three searches least squares cannot do (see `search_shapes`): a delay's τ on the
-//! input actually delayed, Coulomb's sign lead and smoothing, and the ripple period on a fine
-//! grid.
+//! Before LM, searches least squares cannot do (see `search_shapes`): a delay's τ on the
+//! input actually delayed, Coulomb's sign lead and smoothing, the ripple period on a fine
+//! grid, the compliance mode (and the motion form of its column), the quantiser step and the
+//! blur of its sawtooth.
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -235,6 +236,11 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
 ///   the RSS oscillates in the period and LM only finds the nearest minimum.
 ///
+/// * **Compliance**: the mode (f, ζ) by a joint grid and golden sections, in the command form
+///   and in the motion form of the column (see `search_compliance`).
+/// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
+///   `search_quantum`).
+///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
     search_each(model, p);
@@ -350,9 +356,184 @@ fn search_each(model: &mut Model, p: &Prepared) {
                     |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
                 line_search(model, p, e, &xs, &set_period);
             }
+            EffectKind::Compliance => search_compliance(model, p, e),
+            EffectKind::Quantization => search_quantum(model, p, e),
             _ => {}
         }
     }
+}
+
+fn set_mode_frequency(m: &mut Model, e: usize, f: f64) {
+    m.effects[e].shape.compliance_frequency = f;
+}
+
+fn set_mode_damping(m: &mut Model, e: usize, z: f64) {
+    m.effects[e].shape.compliance_damping = z;
+}
+
+/// Compliance: the coupled mode (frequency, damping ratio). The diagnosis places it on a
+/// coarse grid (frequency steps of 25 %, two damping ratios); the column's fit is sharp in
+/// both. A joint grid of frequencies (the diagnosis's own grid plus ±30 % around the current
+/// mode in 5 % steps, up to 0.45× the sample rate) × damping ratios 0.02–0.8, then alternating
+/// golden sections on ln f and ln ζ.
+fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
+    let fs = 1.0 / p.dt;
+    let f_max = 0.45 * fs;
+    let f0 = model.effects[e].shape.compliance_frequency;
+    let mut freqs: Vec<f64> =
+        sim_plant::effects::shape_grid(EffectKind::Compliance, &p.trajectory())
+            .iter()
+            .map(|s| s.compliance_frequency)
+            .collect();
+    freqs.dedup();
+    freqs.extend((-6..=6).map(|k| f0 * 1.05f64.powi(k)));
+    // Above the record's band only J2/(J1·ω²) is identified; a few modes up there let the
+    // refit take that limit instead of a resonance inside the band.
+    if let Some(&top) = freqs.iter().max_by(|a, b| a.total_cmp(b)) {
+        freqs.extend((1..=3).map(|k| top * 1.6f64.powi(k)));
+    }
+    freqs.retain(|&f| f > 0.0 && f < f_max);
+    let zetas = [0.02, 0.035, 0.06, 0.1, 0.16, 0.25, 0.4, 0.6, 0.8];
+    let mut best: Option<(f64, Model)> = None;
+    for &z in &zetas {
+        let mut m = model.clone();
+        set_mode_damping(&mut m, e, z);
+        let (_, r) = line_search(&mut m, p, e, &freqs, &set_mode_frequency);
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, m));
+        }
+    }
+    if let Some((_, m)) = best {
+        *model = m;
+    }
+    // Coordinate golden sections in the logarithms.
+    let set_lf = |m: &mut Model, e: usize, x: f64| set_mode_frequency(m, e, x.exp().min(f_max));
+    let set_lz = |m: &mut Model, e: usize, x: f64| set_mode_damping(m, e, x.exp());
+    let polish = |model: &mut Model| {
+        let lf = model.effects[e].shape.compliance_frequency.ln();
+        golden(model, p, e, (lf - 0.1, lf + 0.1), lf, 12, &set_lf);
+        let lz = model.effects[e].shape.compliance_damping.ln();
+        golden(model, p, e, (lz - 0.4, lz + 0.4), lz, 12, &set_lz);
+    };
+    for _ in 0..2 {
+        polish(model);
+    }
+    // Then the motion form of the column (`J1·H₂·a`, no command noise in it), searched in its
+    // own coordinates: with unit J1 and no ratio the column is `H₂·a` at the locked-motor mode
+    // (f₂, ζ₂) and its amplitude is −J2, linear. The same joint grid and golden sections, then
+    // the split J1 = J − J2 maps it back to the coupled mode (f = f₂·√(1 + J2/J1)) and the
+    // amplitude −J2/J1; the load's viscous friction then enters as (J2·s + b)². Kept only if
+    // it fits better than the command form.
+    let command_form = model.clone();
+    let r0 = ls_rss(&mut model.clone(), p);
+    let mut m = model.clone();
+    {
+        let sh = &mut m.effects[e].shape;
+        sh.compliance_near_inertia = 1.0;
+        sh.compliance_ratio = 0.0;
+        sh.compliance_load_damping = 0.0;
+    }
+    let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
+    freqs2.extend(&freqs);
+    freqs2.retain(|&f| f > 0.5);
+    let mut best: Option<(f64, Model)> = None;
+    for &z in &zetas {
+        let mut mm = m.clone();
+        set_mode_damping(&mut mm, e, z);
+        let (_, r) = line_search(&mut mm, p, e, &freqs2, &set_mode_frequency);
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, mm));
+        }
+    }
+    if let Some((_, mm)) = best {
+        m = mm;
+    }
+    for _ in 0..2 {
+        polish(&mut m);
+    }
+    ls_rss(&mut m, p);
+    let j2 = -m.effects[e].params[0].value;
+    let j1 = m.inertia.value - j2;
+    if j2 > 0.0 && j1 > 0.0 && j2.is_finite() {
+        let ratio = j2 / j1;
+        let b = m
+            .effects
+            .iter()
+            .find(|x| x.kind == EffectKind::Viscous)
+            .and_then(|x| x.params.first())
+            .map_or(0.0, |q| q.value);
+        let sh = &mut m.effects[e].shape;
+        let s = (1.0 + ratio).sqrt();
+        sh.compliance_frequency *= s;
+        sh.compliance_damping *= s;
+        sh.compliance_near_inertia = j1;
+        sh.compliance_ratio = ratio;
+        sh.compliance_load_damping = b.max(0.0);
+        ls_rss(&mut m, p);
+        polish(&mut m);
+        if ls_rss(&mut m.clone(), p) < r0 {
+            *model = m;
+            return;
+        }
+    }
+    *model = command_form;
+}
+
+fn set_quantum(m: &mut Model, e: usize, d: f64) {
+    m.effects[e].shape.quantum = d;
+    if let Some(q) = m.effects[e].params.iter_mut().find(|q| q.name == "step") {
+        q.value = d;
+    }
+}
+
+/// Quantization: the step Δ. The fit of the sawtooth `u − Q_Δ(u)` is very multimodal in Δ: at
+/// a relative error ε the sawtooth slips by ε·K steps where the command spans K = max|u|/Δ
+/// steps, so it decorrelates once ε·K ≈ ½. A dense scan ±5 % around the diagnosis's step at a
+/// relative spacing of 0.15/K (0.01 %–0.5 %), then golden section between the neighbours of the
+/// best.
+fn search_quantum(model: &mut Model, p: &Prepared, e: usize) {
+    let d0 = model.effects[e].shape.quantum;
+    if d0 <= 0.0 {
+        return;
+    }
+    let traj = p.trajectory();
+    let (u, w) = traj.recorded_input();
+    let range = u[w].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let k = (range / d0).max(1.0);
+    let step = (0.15 / k).clamp(1e-4, 5e-3);
+    let half = (0.05f64.ln_1p() / step.ln_1p()).ceil() as i32;
+    let xs: Vec<f64> = (-half..=half).map(|i| d0 * (1.0 + step).powi(i)).collect();
+    let (d1, _) = line_search(model, p, e, &xs, &set_quantum);
+    golden(
+        model,
+        p,
+        e,
+        (d1 / (1.0 + step), d1 * (1.0 + step)),
+        d1,
+        10,
+        &set_quantum,
+    );
+    // The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
+    // section, then Δ once more at that blur.
+    let d = model.effects[e].shape.quantum;
+    let set_blur = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.quantum_blur = x.max(0.0);
+    let blurs: Vec<f64> = [0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.18, 0.25, 0.35]
+        .iter()
+        .map(|r| r * d)
+        .collect();
+    let (b0, _) = line_search(model, p, e, &blurs, &set_blur);
+    let h = 0.03 * d;
+    golden(model, p, e, ((b0 - h).max(0.0), b0 + h), b0, 10, &set_blur);
+    let d = model.effects[e].shape.quantum;
+    golden(
+        model,
+        p,
+        e,
+        (d / (1.0 + 2.0 * step), d * (1.0 + 2.0 * step)),
+        d,
+        10,
+        &set_quantum,
+    );
 }
 
 /// Best grid shape of `kind` against the current model's residual (largest ERR).

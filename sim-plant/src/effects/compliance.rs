@@ -21,7 +21,7 @@
 //! §7.10/7.11: ringing at the transmission mode after steps, motor and load velocities differ
 //! at that mode; a soft zone makes that frequency depend on load.
 
-use super::signal::{highpass2, log_space};
+use super::signal::{biquad2, highpass2, log_space};
 use super::{EffectLaws, Shape, Trajectory};
 
 /// Stiffness used when backlash is present without a compliance effect (N·m/rad).
@@ -99,6 +99,9 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     if n < 8 || traj.dt <= 0.0 {
         return vec![vec![0.0; n]];
     }
+    if shape.compliance_near_inertia > 0.0 {
+        return vec![motion_column(traj, shape)];
+    }
     let (u, window) = traj.recorded_input();
     let hp = highpass2(
         u,
@@ -107,6 +110,37 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         1.0 / traj.dt,
     );
     vec![traj.lowpass(&hp)[window].to_vec()]
+}
+
+/// The motion form of the column: the same residual of the 2-mass plant written with the
+/// measured motion instead of the command, so the command's own noise does not enter the
+/// column (the fit of `H·u` to `r` pays |J2/J1|× the command noise in the mode's band). With
+/// viscous friction b on the load, `r = −(J2·s + b)²·a1/(J2·s² + (b + c)·s + K)`: the column
+/// is `J1·(s + β)²/(s² + 2ζ₂ω₂·s + ω₂²)·a1` with β = b/J2 and the locked-motor (load-side)
+/// mode ω₂² = K/J2 = ω²/(1 + J2/J1) (ζ₂ = ζ/√(1 + J2/J1), the searched damping then also
+/// carrying b), amplitude −J2/J1 as before. The acceleration is already low-passed as the
+/// residual was.
+fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
+    let n = traj.len();
+    let ratio = shape.compliance_ratio.max(0.0);
+    let s = (1.0 + ratio).sqrt();
+    let (f2, z2) = (shape.compliance_frequency / s, shape.compliance_damping / s);
+    let j2 = ratio * shape.compliance_near_inertia;
+    let beta = if j2 > 0.0 {
+        shape.compliance_load_damping.max(0.0) / j2
+    } else {
+        0.0
+    };
+    let y = biquad2(
+        &traj.acceleration[..n],
+        [1.0, 2.0 * beta, beta * beta],
+        f2,
+        z2,
+        1.0 / traj.dt,
+    );
+    y.iter()
+        .map(|v| shape.compliance_near_inertia * v)
+        .collect()
 }
 
 /// Lowest mode frequency searched (Hz): below it a transmission mode is inside the motion band

@@ -146,6 +146,11 @@ pub struct Shape {
     pub input_scale: f64,
     /// Quantization: step of the input (D/A) quantiser, input units; 0 = none.
     pub quantum: f64,
+    /// Quantization: RMS σ of the noise on the recorded command (input units); 0 = none. The
+    /// column is then the sawtooth's expectation given the recorded command, E[u − Q_Δ(u)]
+    /// with u ~ N(recorded, σ²): the sawtooth with its k-th harmonic damped by
+    /// exp(−2π²k²σ²/Δ²).
+    pub quantum_blur: f64,
     /// Delay: the delay τs (s) the column is built for, (u(t) − u(t − τs))/τs; its amplitude
     /// is the delay and equals τs at the best shape. 0 = the derivative u̇ (small delays).
     pub delay: f64,
@@ -156,6 +161,16 @@ pub struct Shape {
     pub compliance_frequency: f64,
     /// Compliance: damping ratio ζ of the coupled mode, c·(1/J1 + 1/J2) = 2ζω.
     pub compliance_damping: f64,
+    /// Compliance: 0 = the column is built from the recorded command (the diagnosis's form);
+    /// positive = the motor-side inertia J1 of the fitted split, and the column is the motion
+    /// form `J1·H₂(s)·a` (see the module; the refit's form, free of the command's noise).
+    pub compliance_near_inertia: f64,
+    /// Compliance, motion form: the inertia ratio J2/J1 that places the locked-motor mode
+    /// ω₂ = ω/√(1 + J2/J1), ζ₂ = ζ/√(1 + J2/J1).
+    pub compliance_ratio: f64,
+    /// Compliance, motion form: viscous friction b on the load side (torque per velocity),
+    /// which shapes the column as (J2·s + b)².
+    pub compliance_load_damping: f64,
     /// Coulomb, asymmetry: time lead (s) of the velocity whose sign the column takes, sign_ε(v + lead·a):
     /// dynamic (LuGre) friction switches over a short pre-sliding displacement, so the torque
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
@@ -176,10 +191,14 @@ impl Default for Shape {
             deadband_width: 0.05,
             input_scale: 1.0,
             quantum: 0.0,
+            quantum_blur: 0.0,
             delay: 0.0,
             smoothing: 5,
             compliance_frequency: 20.0,
             compliance_damping: 0.05,
+            compliance_near_inertia: 0.0,
+            compliance_ratio: 0.0,
+            compliance_load_damping: 0.0,
             sign_lead: 0.0,
         }
     }

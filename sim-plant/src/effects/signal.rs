@@ -181,6 +181,30 @@ pub fn highpass2(x: &[f64], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
     y
 }
 
+/// `(n₂s² + n₁s + n₀)/(s² + 2ζω·s + ω²)` applied to `x` (bilinear transform prewarped at
+/// ω = 2π·`f0`; `num` = [n₂, n₁, n₀]), from the steady state of the first sample. `x` unchanged
+/// when `f0` is not below the Nyquist frequency.
+pub fn biquad2(x: &[f64], num: [f64; 3], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
+    let mut y = x.to_vec();
+    if f0 > 0.0 && f0 < fs / 2.0 {
+        let k = (std::f64::consts::PI * f0 / fs).tan();
+        let c = std::f64::consts::TAU * f0 / k;
+        let zeta = zeta.max(1e-3);
+        let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
+        let [n2, n1, n0] = num;
+        let (p1, p0) = (n1 / c, n0 / (c * c));
+        Biquad {
+            b0: (n2 + p1 + p0) * norm,
+            b1: 2.0 * (p0 - n2) * norm,
+            b2: (n2 - p1 + p0) * norm,
+            a1: 2.0 * (k * k - 1.0) * norm,
+            a2: (1.0 - 2.0 * zeta * k + k * k) * norm,
+        }
+        .run(&mut y);
+    }
+    y
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,6 +221,18 @@ mod tests {
         assert_eq!(m, vec![1.5, 2.0, 3.0, 4.0, 4.5]);
         let g = log_space(1.0, 100.0, 3);
         assert!((g[1] - 10.0).abs() < 1e-12 && (g[2] - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn biquad2_with_a_pure_s2_numerator_is_the_highpass() {
+        let x: Vec<f64> = (0..500).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
+        let a = biquad2(&x, [1.0, 0.0, 0.0], 30.0, 0.2, 1000.0);
+        let b = highpass2(&x, 30.0, 0.2, 1000.0);
+        assert!(a.iter().zip(&b).all(|(a, b)| (a - b).abs() < 1e-9));
+        // A constant numerator ω² is the unit-gain low-pass: DC passes.
+        let w = std::f64::consts::TAU * 30.0;
+        let dc = biquad2(&[2.0; 50], [0.0, 0.0, w * w], 30.0, 0.2, 1000.0);
+        assert!((dc[49] - 2.0).abs() < 1e-9, "{}", dc[49]);
     }
 
     #[test]

@@ -551,11 +551,18 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
                     r.params
                 );
                 for e in &m.effects {
+                    let sh = &e.shape;
                     eprintln!(
-                        "  {}: sign ε {:.3e}, lead {:.2e} s",
+                        "  {}: sign ε {:.3e}, lead {:.2e} s; mode {:.2} Hz ζ {:.3} J1 {:.2e} \
+                         ratio {:.2}; quantum {:.4e}",
                         e.kind.name(),
-                        e.shape.sign_epsilon,
-                        e.shape.sign_lead
+                        sh.sign_epsilon,
+                        sh.sign_lead,
+                        sh.compliance_frequency,
+                        sh.compliance_damping,
+                        sh.compliance_near_inertia,
+                        sh.compliance_ratio,
+                        sh.quantum
                     );
                 }
             }
