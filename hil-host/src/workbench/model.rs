@@ -148,13 +148,20 @@ impl Model {
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let file = path.display().to_string();
         let text = self.to_sim().to_toml_string();
-        sim_plant::Model::from_toml_str(&text, &file).map_err(|e| ModelError::Unsupported {
+        check_physical(&text, &file).map_err(|e| ModelError::Unsupported {
             file: file.clone(),
             message: format!("not written, the fitted model is not physical: {e}"),
         })?;
         std::fs::write(path, text)
             .map_err(|source| sim_plant::model::ModelError::Io { file, source })?;
         Ok(())
+    }
+
+    /// Whether the simulator accepts this model as it would be written (every parameter inside
+    /// its physical range); the reason if not. `--auto` only keeps models that pass, so what it
+    /// finds can always be saved.
+    pub fn physical(&self) -> Result<(), String> {
+        check_physical(&self.to_sim().to_toml_string(), "fitted model")
     }
 
     /// The equation-error view of a simulator model.
@@ -396,6 +403,13 @@ impl EffectEntry {
                 .collect(),
         }
     }
+}
+
+/// Parses `text` back as a simulator model (the one place the physical ranges are checked).
+fn check_physical(text: &str, file: &str) -> Result<(), String> {
+    sim_plant::Model::from_toml_str(text, file)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

@@ -789,7 +789,11 @@ pub fn auto(
         if steps.len() > max_steps {
             return Ok(AutoRun { steps, last: d });
         }
-        let (c, fitted) = choose(model, p, &d, &name)?;
+        let Some((c, fitted)) = choose(model, p, &d, &name)? else {
+            // Every leading candidate fits only with a parameter outside its physical range
+            // (the last diagnosis says which was next): stop with the physical model.
+            return Ok(AutoRun { steps, last: d });
+        };
         *model = fitted;
         steps.push(AutoStep {
             step: steps.len(),
@@ -829,12 +833,13 @@ fn spent_params(kind: EffectKind, df: usize) -> usize {
 /// leading significant candidates (at most three), each is added and fully refitted, and the
 /// one with the lowest BIC, n·ln(RSS/n) + k·ln n, wins — the one-column effect when two
 /// explain the residual comparably (gravity vs ripple, Coulomb vs asymmetry).
+/// `None` when each of them fits only with a parameter outside its physical range.
 fn choose(
     model: &Model,
     p: &Prepared,
     d: &Diagnosis,
     verdict: &str,
-) -> Result<(diagnose::Candidate, Model), fit::FitError> {
+) -> Result<Option<(diagnose::Candidate, Model)>, fit::FitError> {
     let n = p.len() as f64;
     let spent = |c: &diagnose::Candidate| c.kind.map_or(usize::MAX, |k| spent_params(k, c.df));
     let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
@@ -856,6 +861,10 @@ fn choose(
         let mut m = model.clone();
         m.add(kind, c.shape.clone());
         refit_all(&mut m, p)?;
+        if m.physical().is_err() {
+            // e.g. a quantiser gain fitted above 1: not an explanation the simulator can hold
+            continue;
+        }
         let rss: f64 = residual::equation_error(&m, p)
             .residual
             .iter()
@@ -867,8 +876,7 @@ fn choose(
             best = Some((bic, c.clone(), m));
         }
     }
-    let (_, c, m) = best.expect("the verdict is a candidate");
-    Ok((c, m))
+    Ok(best.map(|(_, c, m)| (c, m)))
 }
 
 /// BIC decrease a closing swap must achieve (2: "positive evidence" on Kass & Raftery's scale).
@@ -912,6 +920,9 @@ fn swap_pass(
     seen: &[diagnose::Candidate],
 ) -> Result<Vec<(Option<String>, String)>, fit::FitError> {
     let mut moves = Vec::new();
+    // Effects a move took out may not come back in a later move: refitting re-searches shapes,
+    // so "undo" can look better than the model it came from and the pass would oscillate.
+    let mut taken_out: Vec<EffectKind> = Vec::new();
     for _ in 0..3 {
         // A move must lower BIC by a margin: two models that span the same columns (Coulomb +
         // asymmetry vs offset + asymmetry) tie up to rounding, and trading a physical effect
@@ -919,6 +930,9 @@ fn swap_pass(
         let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
+            if m.physical().is_err() {
+                return;
+            }
             let b = bic(&m, p);
             if b < current && best.as_ref().is_none_or(|x| b < x.0) {
                 best = Some((b, m, added, replaced));
@@ -935,7 +949,7 @@ fn swap_pass(
             let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
                 .iter()
                 .filter_map(|c| c.kind.map(|k| (c, k)))
-                .filter(|(_, k)| !model.has(*k))
+                .filter(|(_, k)| !model.has(*k) && !taken_out.contains(k))
                 .collect();
             for (a, ka) in &fresh {
                 let sa = spent_params(*ka, a.df);
@@ -964,6 +978,11 @@ fn swap_pass(
         }
         match best {
             Some((_, m, added, replaced)) => {
+                taken_out.extend(
+                    EffectKind::ALL
+                        .into_iter()
+                        .filter(|&k| model.has(k) && !m.has(k)),
+                );
                 *model = m;
                 moves.push((added, replaced));
             }
