@@ -439,6 +439,33 @@ mod tests {
         m
     }
 
+    /// `physical` is what `--auto` and `save` rely on: a quantiser gain (fraction of the
+    /// rounding error present, physical range [0, 1]) fitted to 1.07 is refused with the
+    /// parameter's name; 0.9 passes.
+    #[test]
+    fn physical_names_the_parameter_out_of_range() {
+        let mut m = fitted();
+        m.add(
+            EffectKind::Quantization,
+            Shape {
+                quantum: 0.05,
+                ..Shape::default()
+            },
+        );
+        let q = m.effects.len() - 1;
+        m.effects[q].params[0].value = 0.9;
+        assert_eq!(m.physical(), Ok(()));
+        m.effects[q].params[0].value = 1.07;
+        let err = m.physical().expect_err("gain 1.07 is outside [0, 1]");
+        assert!(err.contains("gain"), "{err}");
+        let dir = std::env::temp_dir().join(format!("jointlab-phys-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("q.toml");
+        assert!(m.save(&f).is_err());
+        assert!(!f.exists(), "an unphysical model must not be written");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn a_fit_round_trips_through_the_simulators_model_file() {
         let m = fitted();
