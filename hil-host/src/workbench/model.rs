@@ -126,6 +126,17 @@ impl Model {
             .collect()
     }
 
+    /// The effect owning each parameter, in [`Model::params`] order (`None`: the inertia).
+    pub fn param_owners(&self) -> Vec<Option<EffectKind>> {
+        std::iter::once(None)
+            .chain(
+                self.effects
+                    .iter()
+                    .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
+            )
+            .collect()
+    }
+
     /// Mutable parameters in the same order as [`Model::params`].
     pub fn params_mut(&mut self) -> Vec<&mut Param> {
         std::iter::once(&mut self.inertia)

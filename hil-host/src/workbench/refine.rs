@@ -564,14 +564,7 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     }
     // x = [free amplitudes..., ln(shape) per LM effect]; a delay's τ stays where its own
     // search put it (see `search_shapes`).
-    let owner: Vec<Option<EffectKind>> = std::iter::once(None)
-        .chain(
-            model
-                .effects
-                .iter()
-                .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
-        )
-        .collect();
+    let owner = model.param_owners();
     let free: Vec<usize> = model
         .params()
         .iter()

@@ -261,14 +261,7 @@ pub struct Design {
 pub fn design(model: &Model, p: &Prepared) -> Design {
     let all = columns(model, p);
     let params = model.params();
-    let owner: Vec<Option<EffectKind>> = std::iter::once(None)
-        .chain(
-            model
-                .effects
-                .iter()
-                .flat_map(|e| e.params.iter().map(move |_| Some(e.kind))),
-        )
-        .collect();
+    let owner = model.param_owners();
     let mut y = p.input.clone();
     let mut cols = Vec::new();
     let mut free = Vec::new();
