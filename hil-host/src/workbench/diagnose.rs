@@ -171,35 +171,10 @@ fn scan(
     rss: f64,
 ) -> Option<Scan> {
     let t = p.trajectory();
-    let n = t.len();
-    if n <= SEARCH_WINDOW {
-        let (shape, dr, grid) = search(kind, &t, x0, g0i, e)?;
-        return Some(Scan {
-            kind,
-            shape,
-            err: dr / rss,
-            grid,
-        });
-    }
-    let w = (n - SEARCH_WINDOW) / 2..(n + SEARCH_WINDOW) / 2;
-    let tw = Trajectory {
-        input: &t.input[w.clone()],
-        position: &t.position[w.clone()],
-        velocity: &t.velocity[w.clone()],
-        acceleration: &t.acceleration[w.clone()],
-        raw_offset: t.raw_offset + w.start,
-        ..t
-    };
-    let xw: Vec<Vec<f64>> = x0.iter().map(|c| c[w.clone()].to_vec()).collect();
-    let gw = gram_inverse(&gram(&xw));
-    // The window's residual, made orthogonal to the window's regressors.
-    let ew = fit::least_squares(&xw, &e[w.clone()]).ok()?.residual;
-    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew)?;
-    let z = residual::candidate_columns_on(kind, &t, &shape);
-    let (dr, first) = delta_rss_signed(&z, x0, g0i, e);
-    let dr = match kind.admissible_sign() {
-        Some(sg) if first * sg <= 0.0 => 0.0,
-        _ => dr,
+    let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW {
+        search(kind, &t, x0, g0i, e)?
+    } else {
+        search_windowed(kind, &t, x0, g0i, e)?
     };
     Some(Scan {
         kind,
@@ -207,6 +182,39 @@ fn scan(
         err: dr / rss,
         grid,
     })
+}
+
+/// [`search`] on the central [`SEARCH_WINDOW`] samples of a long record; the chosen shape is
+/// then scored (ΔRSS) on the whole record.
+fn search_windowed(
+    kind: EffectKind,
+    t: &Trajectory,
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+) -> Option<(Shape, f64, usize)> {
+    let n = t.len();
+    let w = (n - SEARCH_WINDOW) / 2..(n + SEARCH_WINDOW) / 2;
+    let tw = Trajectory {
+        input: &t.input[w.clone()],
+        position: &t.position[w.clone()],
+        velocity: &t.velocity[w.clone()],
+        acceleration: &t.acceleration[w.clone()],
+        raw_offset: t.raw_offset + w.start,
+        ..*t
+    };
+    let xw: Vec<Vec<f64>> = x0.iter().map(|c| c[w.clone()].to_vec()).collect();
+    let gw = gram_inverse(&gram(&xw));
+    // The window's residual, made orthogonal to the window's regressors.
+    let ew = fit::least_squares(&xw, &e[w.clone()]).ok()?.residual;
+    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew)?;
+    let z = residual::candidate_columns_on(kind, t, &shape);
+    let (dr, first) = delta_rss_signed(&z, x0, g0i, e);
+    let dr = match kind.admissible_sign() {
+        Some(sg) if first * sg <= 0.0 => 0.0,
+        _ => dr,
+    };
+    Some((shape, dr, grid))
 }
 
 /// Shape search of one effect on trajectory `t`: best shape, its ΔRSS, shapes tried.

@@ -128,6 +128,37 @@ fn line_search(
     best
 }
 
+/// Joint grid search of two shape values of effect `e`: for each `outer` value (set by
+/// `set_outer`) a [`line_search`] over `inner`; `model` becomes the best pair's fit, its RSS
+/// is returned (unchanged model and ∞ for an empty grid). Used where two shape values trade
+/// off against each other (Coulomb smoothing × sign lead, mode damping × frequency).
+fn grid_search(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    outer: &[f64],
+    set_outer: &dyn Fn(&mut Model, usize, f64),
+    inner: &[f64],
+    set_inner: &dyn Fn(&mut Model, usize, f64),
+) -> f64 {
+    let mut best: Option<(f64, Model)> = None;
+    for &x in outer {
+        let mut m = model.clone();
+        set_outer(&mut m, e, x);
+        let (_, r) = line_search(&mut m, p, e, inner, set_inner);
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, m));
+        }
+    }
+    match best {
+        Some((r, m)) => {
+            *model = m;
+            r
+        }
+        None => f64::INFINITY,
+    }
+}
+
 /// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum);
 /// keeps `keep` (the grid point) if that is still better.
 fn golden(
@@ -316,18 +347,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
                         .map(|s| s.sign_epsilon)
                         .collect();
                 // Joint grid (the two trade off against each other), then the lead refined.
-                let mut best: Option<(f64, Model)> = None;
-                for &x in &eps {
-                    let mut m = model.clone();
-                    set_eps(&mut m, e, x);
-                    let (_, r) = line_search(&mut m, p, e, &leads, &set_lead);
-                    if best.as_ref().is_none_or(|b| r < b.0) {
-                        best = Some((r, m));
-                    }
-                }
-                if let Some((_, m)) = best {
-                    *model = m;
-                }
+                grid_search(model, p, e, &eps, &set_eps, &leads, &set_lead);
                 let l = model.effects[e].shape.sign_lead;
                 golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
             }
@@ -394,18 +414,15 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     }
     freqs.retain(|&f| f > 0.0 && f < f_max);
     let zetas = [0.02, 0.035, 0.06, 0.1, 0.16, 0.25, 0.4, 0.6, 0.8];
-    let mut best: Option<(f64, Model)> = None;
-    for &z in &zetas {
-        let mut m = model.clone();
-        set_mode_damping(&mut m, e, z);
-        let (_, r) = line_search(&mut m, p, e, &freqs, &set_mode_frequency);
-        if best.as_ref().is_none_or(|b| r < b.0) {
-            best = Some((r, m));
-        }
-    }
-    if let Some((_, m)) = best {
-        *model = m;
-    }
+    grid_search(
+        model,
+        p,
+        e,
+        &zetas,
+        &set_mode_damping,
+        &freqs,
+        &set_mode_frequency,
+    );
     // Coordinate golden sections in the logarithms.
     let set_lf = |m: &mut Model, e: usize, x: f64| set_mode_frequency(m, e, x.exp().min(f_max));
     let set_lz = |m: &mut Model, e: usize, x: f64| set_mode_damping(m, e, x.exp());
@@ -436,18 +453,15 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
     freqs2.extend(&freqs);
     freqs2.retain(|&f| f > 0.5);
-    let mut best: Option<(f64, Model)> = None;
-    for &z in &zetas {
-        let mut mm = m.clone();
-        set_mode_damping(&mut mm, e, z);
-        let (_, r) = line_search(&mut mm, p, e, &freqs2, &set_mode_frequency);
-        if best.as_ref().is_none_or(|b| r < b.0) {
-            best = Some((r, mm));
-        }
-    }
-    if let Some((_, mm)) = best {
-        m = mm;
-    }
+    grid_search(
+        &mut m,
+        p,
+        e,
+        &zetas,
+        &set_mode_damping,
+        &freqs2,
+        &set_mode_frequency,
+    );
     for _ in 0..2 {
         polish(&mut m);
     }
