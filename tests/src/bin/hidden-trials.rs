@@ -199,6 +199,28 @@ fn main() {
         );
         summary.insert(f.name(), r1);
     }
+    // How far the refits miss: quartiles of validation RMS / floor at ρ ≥ 1.
+    println!("\nvalidation RMS / floor after fit --add, ρ ≥ 1: quartiles (25 / 50 / 75 / 95 %)");
+    for f in Family::ALL {
+        let mut v: Vec<f64> = all
+            .iter()
+            .filter(|o| o.families[0] == f && o.rho >= 1.0 && o.val_ratio.is_finite())
+            .map(|o| o.val_ratio)
+            .collect();
+        if v.is_empty() {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        println!(
+            "{:<13} {:>6.3} {:>6.3} {:>6.3} {:>6.3}",
+            f.name(),
+            q(0.25),
+            q(0.5),
+            q(0.75),
+            q(0.95)
+        );
+    }
     let fa = nulls.iter().filter(|o| !o.null_ok()).count();
     println!(
         "\nnull trials: {} of {} flagged a missing effect (false-alarm rate {:.1} %)",
