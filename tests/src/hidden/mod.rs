@@ -6,7 +6,9 @@
 //!   (closed-loop PD tracking, or feed-forward + soft PD, following a random multi-sine +
 //!   triangle reference with enough reversals and travel), a little broadband dither on the
 //!   command, input sensor noise and encoder quantisation (2¹⁶ counts/rev), and the hidden
-//!   effect's shape parameters over a decade.
+//!   effect's shape parameters over a decade. For a hidden D/A quantiser the input noise is a
+//!   torque disturbance after the converter and the recorded command is exact (see
+//!   [`NoiseAt`]).
 //! * **Strength** ρ = excess RMS of the best baseline fit over the noise:
 //!   `ρ = √(RMS_b² − RMS_0²)/RMS_0`, where `RMS_b` is the baseline's equation-error RMS on the
 //!   trial and `RMS_0` on its *twin* — the same excitation, noise and seeds with the effect
@@ -283,8 +285,31 @@ impl Controller for Pd<'_> {
     }
 }
 
+/// Where a trial's input noise (σ = `noise_u`) enters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum NoiseAt {
+    /// On the recorded input: a measured torque/current with sensor noise.
+    Recording,
+    /// On the torque the motor applies, after the D/A converter: the recorded input is then
+    /// the card's digital command, exact. This is the only consistent arrangement for a
+    /// hidden *D/A quantiser*: a recorded value carrying sensor noise would be a measurement
+    /// taken after the converter, and would already show its steps. The noise floor of the
+    /// equation error is the same either way (`u + w = J·a + …` leaves −w in the residual).
+    Torque,
+}
+
+impl NoiseAt {
+    fn for_trial(families: &[Family]) -> Self {
+        if families.contains(&Family::Quantization) {
+            NoiseAt::Torque
+        } else {
+            NoiseAt::Recording
+        }
+    }
+}
+
 /// Simulate one record of plant `p` under excitation `e`.
-fn record(p: &Plant, e: &Excitation, label: &str) -> Recording {
+fn record(p: &Plant, e: &Excitation, noise: NoiseAt, label: &str) -> Recording {
     let mut ctl = Pd {
         e,
         prev: e.reference[0],
@@ -315,15 +340,23 @@ fn record(p: &Plant, e: &Excitation, label: &str) -> Recording {
             control: &mut sense,
             log: &mut log,
         },
+        if noise == NoiseAt::Torque {
+            &e.input_noise
+        } else {
+            &[]
+        },
     );
     Recording {
         path: label.into(),
-        input: m
-            .command
-            .iter()
-            .zip(&e.input_noise)
-            .map(|(u, n)| u + n)
-            .collect(),
+        input: match noise {
+            NoiseAt::Recording => m
+                .command
+                .iter()
+                .zip(&e.input_noise)
+                .map(|(u, n)| u + n)
+                .collect(),
+            NoiseAt::Torque => m.command,
+        },
         time: m.time,
         output: m.motor_position,
         load_output: None,
@@ -392,8 +425,9 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
         base.fs = fc;
     }
     let start = start_model(families);
-    let twin_e = record(&base, &d.est, "twin-est");
-    let twin_v = record(&base, &d.val, "twin-val");
+    let noise = NoiseAt::for_trial(families);
+    let twin_e = record(&base, &d.est, noise, "twin-est");
+    let twin_v = record(&base, &d.val, noise, "twin-val");
     let pe0 = Prepared::new(&twin_e, cutoff());
     let (floor_est, m0) = fitted_rms(&start, &pe0);
     let pv0 = Prepared::new(&twin_v, cutoff());
@@ -428,7 +462,7 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
         let mut a = a0;
         for _ in 0..2 {
             let p = with_effect(&d, &base, f, a, travel);
-            let r = record(&p, &d.est, "calib");
+            let r = record(&p, &d.est, noise, "calib");
             let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
             let rr = rho(b, floor_est);
             a *= if !rr.is_finite() {
@@ -444,8 +478,8 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
     if std::env::var_os("HIDDEN_DEBUG").is_some() {
         eprintln!("truth: {plant:?}");
     }
-    let est = record(&plant, &d.est, &format!("hidden seed {seed} est"));
-    let val = record(&plant, &d.val, &format!("hidden seed {seed} val"));
+    let est = record(&plant, &d.est, noise, &format!("hidden seed {seed} est"));
+    let val = record(&plant, &d.val, noise, &format!("hidden seed {seed} val"));
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
     let bounded = |rec: &Recording| {

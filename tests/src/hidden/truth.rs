@@ -174,6 +174,11 @@ pub struct Sensors<'a> {
 }
 
 /// Integrate the plant for `n` samples of `dt`, `sub` RK4 sub-steps per sample.
+///
+/// `disturbance[k]` (if not empty) is a torque added at the motor over sample `k`, after the
+/// delay and the quantiser: current-loop noise and cogging-like disturbances of a real drive,
+/// which no recording of the command shows.
+#[allow(clippy::too_many_arguments)]
 pub fn simulate(
     p: &Plant,
     ctl: &mut dyn Controller,
@@ -182,6 +187,7 @@ pub fn simulate(
     sub: usize,
     x0: f64,
     sensors: Sensors,
+    disturbance: &[f64],
 ) -> Measured {
     let Sensors {
         control: sense,
@@ -227,7 +233,12 @@ pub fn simulate(
                 }
             };
             let t0 = t + j as f64 * h;
-            let (ua, ub, uc) = (applied(t0), applied(t0 + 0.5 * h), applied(t0 + h));
+            let w = disturbance.get(k).copied().unwrap_or(0.0);
+            let (ua, ub, uc) = (
+                applied(t0) + w,
+                applied(t0 + 0.5 * h) + w,
+                applied(t0 + h) + w,
+            );
             let k1 = p.deriv(&s, ua);
             let s2 = add(&s, &k1, 0.5 * h);
             let k2 = p.deriv(&s2, ub);
