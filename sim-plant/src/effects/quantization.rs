@@ -97,7 +97,8 @@ fn scatter(u: &[f64]) -> f64 {
 }
 
 /// Steps log-spaced (≈ 6 % apart) from 0.3× the command's sample-to-sample scatter (or a
-/// hundredth of its range if smaller) to a third of its range (it must span a few steps). The sawtooth of
+/// hundredth of its range if smaller) to its peak |u| (a command swinging ±|u| crosses at least two
+/// steps; a coarse D/A with few steps across the range is the strongest case). The sawtooth of
 /// a wrong step decorrelates quickly, hence the fine spacing; [`refine_grid`] polishes it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let (u, window) = traj.recorded_input();
@@ -106,7 +107,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let range = positive_or(range, 1.0);
     let lo = positive_or(scatter(u), 1e-3 * range);
     let lo = (0.3 * lo).min(0.01 * range);
-    let hi = (range / 3.0).max(lo);
+    let hi = range.max(lo);
     let count = (((hi / lo).ln() / 1.06f64.ln()).ceil() as usize).max(1);
     log_space(lo, hi, count)
         .into_iter()

@@ -7,6 +7,8 @@
 //! ```
 //! `--family` runs only those single-effect families, `--pairs-only` only the `--auto` pairs,
 //! `--nulls-only` only the null trials (quick iteration); seeds are the same as in a full run.
+//! `--fails` lists (on stderr) the single-effect trials at ρ ≥ 1 that missed rank 1 or the
+//! refit-to-floor bound, with the seed and target ρ to replay them with `one`.
 //! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
 
 use std::collections::BTreeMap;
@@ -20,6 +22,7 @@ fn main() {
     let raw: Vec<String> = std::env::args().skip(1).collect();
     let mut only: Option<Vec<String>> = None;
     let (mut singles, mut with_nulls, mut with_pairs) = (true, true, true);
+    let mut show_fails = false;
     let mut positional = Vec::new();
     let mut it = raw.iter();
     while let Some(a) = it.next() {
@@ -33,6 +36,7 @@ fn main() {
             }
             "--pairs-only" => (singles, with_nulls) = (false, false),
             "--nulls-only" => (singles, with_pairs) = (false, false),
+            "--fails" => show_fails = true,
             _ => positional.push(a.clone()),
         }
     }
@@ -127,7 +131,20 @@ fn main() {
     for (k, o) in sorted {
         match (jobs[k].0, o) {
             (_, None) => unstable += 1,
-            (0, Some(o)) => all.push(o),
+            (0, Some(o)) => {
+                if show_fails && o.rho >= 1.0 && (!o.rank1_ok() || !(o.val_ratio <= 1.1)) {
+                    eprintln!(
+                        "fail: {} seed {} target ρ {} (measured {:.2}): rank 1 {:?}, val/floor {:.3}",
+                        o.families[0].name(),
+                        jobs[k].1,
+                        jobs[k].3,
+                        o.rho,
+                        o.top,
+                        o.val_ratio
+                    );
+                }
+                all.push(o)
+            }
             (1, Some(o)) => nulls.push(o),
             (_, Some(o)) => pairs.push(o),
         }

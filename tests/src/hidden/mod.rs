@@ -460,7 +460,10 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
         // second of a pair on a plant that already carries the first would scale the pair's
         // combined strength to the target and leave the second effect far weaker.
         let mut a = a0;
-        for _ in 0..2 {
+        // A quantiser's strength is a ragged function of its step (how many steps the command
+        // crosses, how they line up with its plateaus): two more secant steps.
+        let steps = if f == Family::Quantization { 4 } else { 2 };
+        for _ in 0..steps {
             let p = with_effect(&d, &base, f, a, travel);
             let r = record(&p, &d.est, noise, "calib");
             let (b, _) = fitted_rms(&start, &Prepared::new(&r, cutoff()));
