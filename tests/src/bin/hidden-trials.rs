@@ -132,7 +132,10 @@ fn main() {
         match (jobs[k].0, o) {
             (_, None) => unstable += 1,
             (0, Some(o)) => {
-                if show_fails && o.rho >= 1.0 && (!o.rank1_ok() || !(o.val_ratio <= 1.1)) {
+                if show_fails
+                    && o.rho >= 1.0
+                    && (!o.rank1_ok() || o.val_ratio.is_nan() || o.val_ratio > 1.1)
+                {
                     eprintln!(
                         "fail: {} seed {} target ρ {} (measured {:.2}): rank 1 {:?}, val/floor {:.3}",
                         o.families[0].name(),
