@@ -337,7 +337,7 @@ fn backlash_fingerprint_amplitude_is_the_load_inertia() {
     // A free inertia: the transmitted torque follows the input.
     let shape = Shape {
         backlash_width: width,
-        backlash_on_input: true,
+        backlash_load_time: 0.0,
         ..Shape::default()
     };
     let r = run.residual(j1 + j2);

@@ -378,6 +378,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             }
             EffectKind::Compliance => search_compliance(model, p, e),
             EffectKind::Quantization => search_quantum(model, p, e),
+            EffectKind::Backlash => search_backlash(model, p, e),
             _ => {}
         }
     }
@@ -491,6 +492,49 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
         }
     }
     *model = command_form;
+}
+
+fn set_backlash_width(m: &mut Model, e: usize, b: f64) {
+    m.effects[e].shape.backlash_width = b;
+}
+
+fn set_load_time(m: &mut Model, e: usize, tau: f64) {
+    m.effects[e].shape.backlash_load_time = tau;
+}
+
+/// Backlash: the gap width b and the load's viscous time constant τ. The diagnosis places
+/// them on a coarse grid (width steps of ×2.7, four τ); the fit is sharp in the width (the
+/// lost motion sets when each crossing ends) and smooth but not flat in τ. A joint grid of
+/// τ (0.03–10 s and no decay) × widths ±×3 around the current one in steps of 12 %, then
+/// alternating golden sections on ln b and ln τ (the RSS is piecewise smooth in b: a grid
+/// point brackets its minimum).
+fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
+    let b0 = model.effects[e].shape.backlash_width;
+    if b0 <= 0.0 {
+        return;
+    }
+    let widths: Vec<f64> = (-10..=10).map(|k| b0 * 1.12f64.powi(k)).collect();
+    let taus = [0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 0.0];
+    grid_search(
+        model,
+        p,
+        e,
+        &taus,
+        &set_load_time,
+        &widths,
+        &set_backlash_width,
+    );
+    let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
+    let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
+    for _ in 0..2 {
+        let lb = model.effects[e].shape.backlash_width.ln();
+        golden(model, p, e, (lb - 0.12, lb + 0.12), lb, 10, &set_lb);
+        let tau = model.effects[e].shape.backlash_load_time;
+        if tau > 0.0 {
+            let lt = tau.ln();
+            golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 10, &set_lt);
+        }
+    }
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {
