@@ -6,11 +6,11 @@
 //! point of the library's `shape_grid`, then refined together with all free amplitudes by
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
-//! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
-//! Before LM, searches least squares cannot do (see `search_shapes`): a delay's τ on the
-//! input actually delayed, Coulomb's sign lead and smoothing, the ripple period on a fine
-//! grid, the compliance mode (and the motion form of its column), the quantiser step and the
-//! blur of its sawtooth.
+//! is not smooth in the shape (backlash width, quantum) are not refined by LM. Before LM,
+//! searches least squares cannot do (see `search_shapes`): a delay's τ on the input actually
+//! delayed, Coulomb's sign lead and smoothing, the ripple period on a fine grid, the
+//! compliance mode (and the motion form of its column), the quantiser step and the blur of
+//! its sawtooth, the backlash width and the load's time constant.
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -271,6 +271,8 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   and in the motion form of the column (see `search_compliance`).
 /// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
 ///   `search_quantum`).
+/// * **Backlash**: the gap width and the load's time constant by a joint grid and golden
+///   sections (see `search_backlash`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {

@@ -130,7 +130,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 /// Load time constants of the shape grid (s; 0 = no decay).
 pub const LOAD_TIMES: [f64; 4] = [0.1, 0.5, 2.5, 0.0];
 
-/// Widths log-spaced from 1e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`].
+/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`].
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
@@ -139,7 +139,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let span = positive_or(hi - lo, 1.0);
     let mut out = Vec::new();
     for tau in LOAD_TIMES {
-        for b in log_space(1e-4 * span, 0.1 * span, 8) {
+        for b in log_space(3e-4 * span, 0.1 * span, 7) {
             out.push(Shape {
                 backlash_width: b,
                 backlash_load_time: tau,
