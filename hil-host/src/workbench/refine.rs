@@ -504,19 +504,26 @@ fn set_load_time(m: &mut Model, e: usize, tau: f64) {
     m.effects[e].shape.backlash_load_time = tau;
 }
 
-/// Backlash: the gap width b and the load's viscous time constant τ. The diagnosis places
-/// them on a coarse grid (width steps of ×2.7, four τ); the fit is sharp in the width (the
-/// lost motion sets when each crossing ends) and smooth but not flat in τ. A joint grid of
-/// τ (0.03–10 s and no decay) × widths ±×3 around the current one in steps of 12 %, then
-/// alternating golden sections on ln b and ln τ (the RSS is piecewise smooth in b: a grid
-/// point brackets its minimum).
+/// Backlash: the gap width b and the load's viscous time constant τ. The fit is sharp and
+/// multimodal in the width (it sets when each crossing of the gap ends, and a width off by a
+/// step can lock onto a different set of crossings), smooth but not flat in τ. A joint grid of
+/// τ (0.03–10 s in steps of ×1.6, and no decay) × widths over the diagnosis's whole width
+/// range in steps of 10 % (the minimum in b is about ±15 % wide and moves with τ), then
+/// widths ±15 % around the best in steps of 1.5 %, then alternating golden sections on ln τ
+/// and ln b.
 fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
-    let b0 = model.effects[e].shape.backlash_width;
-    if b0 <= 0.0 {
+    let grid = sim_plant::effects::shape_grid(EffectKind::Backlash, &p.trajectory());
+    let (lo, hi) = grid.iter().fold((f64::INFINITY, 0.0f64), |(l, h), s| {
+        (l.min(s.backlash_width), h.max(s.backlash_width))
+    });
+    if !(lo > 0.0 && hi > lo) {
         return;
     }
-    let widths: Vec<f64> = (-10..=10).map(|k| b0 * 1.12f64.powi(k)).collect();
-    let taus = [0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 0.0];
+    let steps = ((hi / lo).ln() / 1.1f64.ln()).ceil() as i32;
+    let widths: Vec<f64> = (0..=steps).map(|k| lo * 1.1f64.powi(k)).collect();
+    let taus = [
+        0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
+    ];
     grid_search(
         model,
         p,
@@ -526,16 +533,19 @@ fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
         &widths,
         &set_backlash_width,
     );
+    let b0 = model.effects[e].shape.backlash_width;
+    let fine: Vec<f64> = (-10..=10).map(|k| b0 * 1.015f64.powi(k)).collect();
+    line_search(model, p, e, &fine, &set_backlash_width);
     let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
     let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
     for _ in 0..2 {
-        let lb = model.effects[e].shape.backlash_width.ln();
-        golden(model, p, e, (lb - 0.12, lb + 0.12), lb, 10, &set_lb);
         let tau = model.effects[e].shape.backlash_load_time;
         if tau > 0.0 {
             let lt = tau.ln();
             golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 10, &set_lt);
         }
+        let lb = model.effects[e].shape.backlash_width.ln();
+        golden(model, p, e, (lb - 0.015, lb + 0.015), lb, 8, &set_lb);
     }
 }
 
