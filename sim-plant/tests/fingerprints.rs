@@ -361,10 +361,18 @@ fn backlash_fingerprint_amplitude_is_the_load_inertia() {
     let r: Vec<f64> = u.iter().zip(&a).map(|(u, a)| u - (j1 + j2) * a).collect();
     let col = &fingerprint(EffectKind::Backlash, &traj, &shape)[0];
     // Away from the filter's edges.
-    let keep: Vec<bool> = (0..r.len()).map(|i| i >= 200 && i + 200 < r.len()).collect();
+    let keep: Vec<bool> = (0..r.len())
+        .map(|i| i >= 200 && i + 200 < r.len())
+        .collect();
     let got = lstsq(std::slice::from_ref(col), &r, &keep);
     assert_close(&got, &[j2], 0.05);
-    let kept = || r.iter().zip(col).zip(&keep).filter(|(_, k)| **k).map(|(x, _)| x);
+    let kept = || {
+        r.iter()
+            .zip(col)
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| x)
+    };
     let before: f64 = kept().map(|(x, _)| x * x).sum();
     let after: f64 = kept().map(|(x, c)| (x - got[0] * c).powi(2)).sum();
     assert!(
