@@ -11,7 +11,7 @@ use std::f64::consts::TAU;
 use common::*;
 use sim_plant::effects::{
     asymmetry, backlash, cogging, compliance, deadband, delay, fingerprint, gravity, offset,
-    quantization, ripple, stribeck, viscous, EffectKind, Shape, Trajectory,
+    quantization, ripple, signal, stribeck, viscous, EffectKind, Shape, Trajectory,
 };
 use sim_plant::plant::{Plant, PlantOptions};
 use sim_plant::Model;
@@ -318,11 +318,12 @@ fn compliance_fingerprint_amplitude_is_minus_j2_over_j1_at_the_coupled_mode() {
     assert_close(&got, &[-0.25 * j2 / j1], 0.1);
 }
 
-/// Rigid model of a joint with backlash, measured at the motor: while crossing the gap the
-/// residual is −J_load·a; the fitted amplitude is the load inertia (the impacts at the ends
-/// of the gap are outside the linearisation, hence the tolerance), and on the samples the
-/// column flags it must explain most of the residual. (Over the whole run the impact spikes
-/// dominate the residual; they are the compliance effect's business.)
+/// Rigid model of a joint with backlash, measured at the motor: the residual is
+/// −J_load·(δ̈ + δ̇/τ) of the motor–load deflection δ, which the column simulates (the load
+/// coasts through the gap, is pushed at its edges); the fitted amplitude is the load inertia
+/// and it explains the residual in the band a workbench looks at (40 Hz low-pass of both
+/// sides; 99 % here: equal inertias, a well-damped contact, open loop). Above that band the
+/// contact ringing is the compliance effect's business.
 #[test]
 fn backlash_fingerprint_amplitude_is_the_load_inertia() {
     let (j1, j2, width) = (0.01, 0.01, 0.02);
@@ -334,27 +335,48 @@ fn backlash_fingerprint_amplitude_is_the_load_inertia() {
     });
     m.effects.backlash = Some(backlash::Params { width: p(width) });
     let run = simulate(&m, 6.0, 1.0, true);
-    // A free inertia: the transmitted torque follows the input.
+    // A free, frictionless load: no viscous decay while it coasts.
     let shape = Shape {
         backlash_width: width,
-        backlash_on_input: true,
+        backlash_load_time: 0.0,
         ..Shape::default()
     };
-    let r = run.residual(j1 + j2);
-    let got = fit(
-        &[(EffectKind::Backlash, shape.clone())],
-        &run,
-        j1 + j2,
-        &all(&run),
-    );
-    assert_close(&got, &[j2], 0.3);
-    let col = &fingerprint(EffectKind::Backlash, &run.traj(), &shape)[0];
-    let flagged = || r.iter().zip(col).filter(|(_, c)| **c != 0.0);
-    assert!(flagged().count() > 100);
-    let before: f64 = flagged().map(|(x, _)| x * x).sum();
-    let after: f64 = flagged().map(|(x, c)| (x - got[0] * c).powi(2)).sum();
+    // As a workbench sees it: the sampled acceleration misses the contact impulses, which are
+    // shorter than a sample, so the motion is differentiated from the low-passed position and
+    // the input gets the same low-pass.
+    let fc = 40.0;
+    let q = signal::filtfilt(&run.q, fc, 1.0 / DT);
+    let v = signal::derivative(&q, DT);
+    let a = signal::derivative(&v, DT);
+    let u = signal::filtfilt(&run.u, fc, 1.0 / DT);
+    let traj = Trajectory {
+        position: &q,
+        velocity: &v,
+        acceleration: &a,
+        input: &u,
+        raw_input: &u,
+        lowpass_hz: fc,
+        ..run.traj()
+    };
+    let r: Vec<f64> = u.iter().zip(&a).map(|(u, a)| u - (j1 + j2) * a).collect();
+    let col = &fingerprint(EffectKind::Backlash, &traj, &shape)[0];
+    // Away from the filter's edges.
+    let keep: Vec<bool> = (0..r.len())
+        .map(|i| i >= 200 && i + 200 < r.len())
+        .collect();
+    let got = lstsq(std::slice::from_ref(col), &r, &keep);
+    assert_close(&got, &[j2], 0.05);
+    let kept = || {
+        r.iter()
+            .zip(col)
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| x)
+    };
+    let before: f64 = kept().map(|(x, _)| x * x).sum();
+    let after: f64 = kept().map(|(x, c)| (x - got[0] * c).powi(2)).sum();
     assert!(
-        after < 0.5 * before,
+        after < 0.05 * before,
         "explained only {:.0} %",
         100.0 * (1.0 - after / before)
     );

@@ -6,11 +6,11 @@
 //! point of the library's `shape_grid`, then refined together with all free amplitudes by
 //! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
 //! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
-//! is discontinuous in the shape (backlash width, quantum) stay at the best grid point.
-//! Before LM, searches least squares cannot do (see `search_shapes`): a delay's τ on the
-//! input actually delayed, Coulomb's sign lead and smoothing, the ripple period on a fine
-//! grid, the compliance mode (and the motion form of its column), the quantiser step and the
-//! blur of its sawtooth.
+//! is not smooth in the shape (backlash width, quantum) are not refined by LM. Before LM,
+//! searches least squares cannot do (see `search_shapes`): a delay's τ on the input actually
+//! delayed, Coulomb's sign lead and smoothing, the ripple period on a fine grid, the
+//! compliance mode (and the motion form of its column), the quantiser step and the blur of
+//! its sawtooth, the backlash width and the load's time constant.
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -271,6 +271,8 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   and in the motion form of the column (see `search_compliance`).
 /// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
 ///   `search_quantum`).
+/// * **Backlash**: the gap width and the load's time constant by a joint grid and golden
+///   sections (see `search_backlash`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
@@ -378,6 +380,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             }
             EffectKind::Compliance => search_compliance(model, p, e),
             EffectKind::Quantization => search_quantum(model, p, e),
+            EffectKind::Backlash => search_backlash(model, p, e),
             _ => {}
         }
     }
@@ -491,6 +494,59 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
         }
     }
     *model = command_form;
+}
+
+fn set_backlash_width(m: &mut Model, e: usize, b: f64) {
+    m.effects[e].shape.backlash_width = b;
+}
+
+fn set_load_time(m: &mut Model, e: usize, tau: f64) {
+    m.effects[e].shape.backlash_load_time = tau;
+}
+
+/// Backlash: the gap width b and the load's viscous time constant τ. The fit is sharp and
+/// multimodal in the width (it sets when each crossing of the gap ends, and a width off by a
+/// step can lock onto a different set of crossings), smooth but not flat in τ. A joint grid of
+/// τ (0.03–10 s in steps of ×1.6, and no decay) × widths over the diagnosis's whole width
+/// range in steps of 10 % (the minimum in b is about ±15 % wide and moves with τ), then
+/// widths ±15 % around the best in steps of 1.5 %, then alternating golden sections on ln τ
+/// and ln b.
+fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
+    let grid = sim_plant::effects::shape_grid(EffectKind::Backlash, &p.trajectory());
+    let (lo, hi) = grid.iter().fold((f64::INFINITY, 0.0f64), |(l, h), s| {
+        (l.min(s.backlash_width), h.max(s.backlash_width))
+    });
+    if !(lo > 0.0 && hi > lo) {
+        return;
+    }
+    let steps = ((hi / lo).ln() / 1.1f64.ln()).ceil() as i32;
+    let widths: Vec<f64> = (0..=steps).map(|k| lo * 1.1f64.powi(k)).collect();
+    let taus = [
+        0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
+    ];
+    grid_search(
+        model,
+        p,
+        e,
+        &taus,
+        &set_load_time,
+        &widths,
+        &set_backlash_width,
+    );
+    let b0 = model.effects[e].shape.backlash_width;
+    let fine: Vec<f64> = (-10..=10).map(|k| b0 * 1.015f64.powi(k)).collect();
+    line_search(model, p, e, &fine, &set_backlash_width);
+    let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
+    let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
+    for _ in 0..2 {
+        let tau = model.effects[e].shape.backlash_load_time;
+        if tau > 0.0 {
+            let lt = tau.ln();
+            golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 10, &set_lt);
+        }
+        let lb = model.effects[e].shape.backlash_width.ln();
+        golden(model, p, e, (lb - 0.015, lb + 0.015), lb, 8, &set_lb);
+    }
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {

@@ -8,17 +8,19 @@
 //! separation fall out of the spring law, no event logic needed). Lumped at the output, in
 //! output radians (the thesis lumps it at the input; the two differ by N).
 //!
-//! Fingerprint (linearised, rigid model, position measured on the motor side): the gap is
-//! crossed whenever the transmitted torque changes sign — at a velocity reversal for a
-//! friction-dominated load (the thesis's "load lags the motor after each reversal"), at a sign
-//! change of the input for an inertia-dominated one (`Shape::backlash_on_input`; the grid
-//! offers both). While crossing, the motor moves with the load decoupled, so the true input is
-//! `J1·a` instead of the model's `J·a`, and the residual `r = u − J·a = −J_load·a`. Column
-//! `[−a·gap_b(t)]` with `gap_b(t) = 1` from the trigger until the motor has moved b relative
-//! to the decoupled load, which coasts on at the velocity it had at the trigger; its
-//! amplitude is the inertia beyond the gap (kg·m², not a model parameter — the width b is the
-//! shape). The impacts at the ends of the gap are outside this linearisation. Thesis-notes
-//! §7.13: flat dead zone of width b at torque reversal, load lags after reversal.
+//! Fingerprint (rigid model, position measured on the motor side): with δ = x_motor − x_load
+//! the true input is `J1·a + J2·a_load + b·v_load`, so a rigid model `J·a + b·v` (J = J1 + J2)
+//! leaves exactly `r = −J2·(δ̈ + δ̇/τ)`, τ = J2/b the load's viscous time constant — zero while
+//! the gap is closed (δ = ±b/2 constant), the lost motion while it is crossed. The column is
+//! that expression for a δ(t) simulated from the measured motion: the load is a mass that
+//! coasts through the gap with its own viscous decay (velocity × e^(−t/τ)) and is pushed along
+//! when the motor reaches an edge of the gap (a play operator with inertia). Separation needs
+//! no trigger: it happens when the motor decelerates faster than the coasting load, whether
+//! because the velocity reverses, the input reverses or the loop chatters; the impact at the
+//! far edge is inelastic (the load takes on the motor's velocity if that pushes it faster).
+//! δ goes through the residual's low-pass before it is differentiated, as the motion did.
+//! Amplitude: the load inertia J2 (kg·m², not a model parameter); shapes: the width b and τ.
+//! Thesis-notes §7.13: flat dead zone of width b at torque reversal, load lags after reversal.
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
@@ -63,58 +65,84 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     }
 }
 
-/// `[−a·gap_b(t)]`.
+/// Motor-minus-load deflection δ(t) of a load that coasts inside a gap of total width `b`
+/// (viscous time constant `tau`, 0 = none) and is pushed along at its edges by the motor
+/// (`position`, `velocity`).
+pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: f64) -> Vec<f64> {
+    let half = 0.5 * b;
+    let n = position.len().min(velocity.len());
+    let (decay, drift) = if tau > 0.0 {
+        let d = (-dt / tau).exp();
+        (d, tau * (1.0 - d))
+    } else {
+        (1.0, dt)
+    };
+    let mut out = Vec::with_capacity(n);
+    let (mut x2, mut v2) = match (position.first(), velocity.first()) {
+        (Some(&x), Some(&v)) => (x, v),
+        _ => return out,
+    };
+    for i in 0..n {
+        if i > 0 {
+            x2 += drift * v2;
+            v2 *= decay;
+        }
+        let (x, v) = (position[i], velocity[i]);
+        let d = x - x2;
+        if d > half {
+            x2 = x - half;
+            v2 = v2.max(v);
+        } else if d < -half {
+            x2 = x + half;
+            v2 = v2.min(v);
+        }
+        out.push(x - x2);
+    }
+    out
+}
+
+/// `[−(δ̈ + δ̇/τ)]` of the low-passed [`gap_deflection`].
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
-    let b = shape.backlash_width;
-    let (trigger, eps) = if shape.backlash_on_input {
-        (&traj.input[..n], 1e-3 * traj.max_abs_input())
-    } else {
-        (&traj.velocity[..n], shape.sign_epsilon)
-    };
-    let mut col = Vec::with_capacity(n);
-    let mut dir = 0.0;
-    // Load position, velocity and sample index at the last trigger (NaN: not yet in contact).
-    let (mut anchor, mut anchor_v, mut anchor_i) = (f64::NAN, 0.0, 0);
-    for (i, (&x, &q)) in trigger.iter().zip(&traj.position[..n]).enumerate() {
-        let s = if x > eps {
-            1.0
-        } else if x < -eps {
-            -1.0
-        } else {
-            dir
-        };
-        if s != dir {
-            if dir != 0.0 {
-                // The transmitted torque reversed: the gap must be crossed.
-                anchor = q;
-                anchor_v = traj.velocity[i];
-                anchor_i = i;
-            }
-            dir = s;
-        }
-        let load = anchor + anchor_v * (i - anchor_i) as f64 * traj.dt;
-        let in_gap = anchor.is_finite() && (q - load).abs() < b;
-        col.push(if in_gap { -traj.acceleration[i] } else { 0.0 });
+    let tau = shape.backlash_load_time;
+    let delta = gap_deflection(
+        &traj.position[..n],
+        &traj.velocity[..n],
+        shape.backlash_width,
+        tau,
+        traj.dt,
+    );
+    let d = traj.lowpass(&delta);
+    let dt = traj.dt;
+    let mut col = vec![0.0; n];
+    for i in 1..n.saturating_sub(1) {
+        let acc = (d[i + 1] - 2.0 * d[i] + d[i - 1]) / (dt * dt);
+        let vel = (d[i + 1] - d[i - 1]) / (2.0 * dt);
+        col[i] = -(acc + if tau > 0.0 { vel / tau } else { 0.0 });
+    }
+    if n >= 3 {
+        col[0] = col[1];
+        col[n - 1] = col[n - 2];
     }
     vec![col]
 }
 
-/// Widths log-spaced from 1e-4 to 0.1 of the position span, for both triggers.
+/// Load time constants of the shape grid (s; 0 = no decay).
+pub const LOAD_TIMES: [f64; 4] = [0.1, 0.5, 2.5, 0.0];
+
+/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`].
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &q| (l.min(q), h.max(q)));
     let span = positive_or(hi - lo, 1.0);
-    let vmax = positive_or(traj.max_abs_velocity(), 1.0);
     let mut out = Vec::new();
-    for on_input in [false, true] {
-        for b in log_space(1e-4 * span, 0.1 * span, 8) {
+    for tau in LOAD_TIMES {
+        for b in log_space(3e-4 * span, 0.1 * span, 7) {
             out.push(Shape {
                 backlash_width: b,
-                backlash_on_input: on_input,
-                sign_epsilon: 1e-3 * vmax,
+                backlash_load_time: tau,
                 ..Shape::default()
             });
         }

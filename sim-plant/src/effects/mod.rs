@@ -119,7 +119,7 @@ impl Trajectory<'_> {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Shape {
-    /// Coulomb, asymmetry, stribeck, backlash (velocity trigger): |v| below which sign(v) is
+    /// Coulomb, asymmetry, stribeck: |v| below which sign(v) is
     /// replaced by v/ε (a deadbanded sign: measured velocity near zero is mostly quantisation
     /// noise). Units of velocity.
     pub sign_epsilon: f64,
@@ -135,10 +135,9 @@ pub struct Shape {
     pub cogging_period: f64,
     /// Backlash: total width of the dead zone, position units.
     pub backlash_width: f64,
-    /// Backlash: what makes the transmission cross its gap. `false`: velocity reversal (a
-    /// friction-dominated load, the thesis's stiffness/backdrive tests); `true`: sign change
-    /// of the input (an inertia-dominated load, whose transmitted torque follows the input).
-    pub backlash_on_input: bool,
+    /// Backlash: time constant J_load/b_load (s) of the load's viscous decay while it coasts
+    /// through the gap; 0 = no decay (a frictionless load coasts at constant velocity).
+    pub backlash_load_time: f64,
     /// Deadband: half-width of the input dead zone, input units.
     pub deadband_width: f64,
     /// Deadband (torque-constant nonlinearity): input scale the nonlinearity is normalised to
@@ -187,7 +186,7 @@ impl Default for Shape {
             ripple_period: std::f64::consts::TAU / 100.0,
             cogging_period: 0.0,
             backlash_width: 0.01,
-            backlash_on_input: false,
+            backlash_load_time: 0.0,
             deadband_width: 0.05,
             input_scale: 1.0,
             quantum: 0.0,
