@@ -59,6 +59,10 @@ pub struct Prepared {
     pub noise_floor: f64,
     /// Measured (raw) position.
     pub raw_position: Vec<f64>,
+    /// Acceleration over the whole record (edges included, indexed as `raw_input`): dynamic
+    /// fingerprints of the motion filter it from the record's start (see
+    /// `sim_plant::effects::Trajectory::raw_acceleration`).
+    pub raw_acceleration: Vec<f64>,
     /// Smoothed position.
     pub position: Vec<f64>,
     /// Velocity.
@@ -92,6 +96,7 @@ impl Prepared {
             position: d.position[r.clone()].to_vec(),
             velocity: d.velocity[r.clone()].to_vec(),
             acceleration: d.acceleration[r].to_vec(),
+            raw_acceleration: d.acceleration.clone(),
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
@@ -117,6 +122,7 @@ impl Prepared {
             acceleration: &self.acceleration,
             raw_input: &self.raw_input,
             raw_offset: self.raw_offset,
+            raw_acceleration: &self.raw_acceleration,
             lowpass_hz: self.cutoff_hz,
         }
     }
@@ -355,6 +361,7 @@ pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -
         acceleration: &as_,
         raw_input: &us,
         raw_offset: 0,
+        raw_acceleration: &[],
         lowpass_hz: 0.0,
     };
     let mut f = 0.0;
