@@ -103,10 +103,7 @@ impl Trajectory<'_> {
     pub fn recorded_acceleration(&self) -> (&[f64], std::ops::Range<usize>) {
         let n = self.len();
         if self.raw_acceleration.len() >= self.raw_offset + n {
-            (
-                self.raw_acceleration,
-                self.raw_offset..self.raw_offset + n,
-            )
+            (self.raw_acceleration, self.raw_offset..self.raw_offset + n)
         } else {
             (&self.acceleration[..n], 0..n)
         }
