@@ -336,13 +336,14 @@ pub struct StaticFriction {
 }
 
 impl StaticFriction {
-    /// Samples at rest whose balancing torque static friction can hold.
+    /// Samples at rest. All of them, not only those whose balancing torque the current
+    /// breakaway level holds: that choice would depend on the amplitudes being fitted and
+    /// reward a larger level with fewer rows to explain (a Coulomb term would grow to cover a
+    /// Stribeck excess at rest).
     fn stuck(&self, p: &Prepared) -> Vec<bool> {
-        (0..p.len())
-            .map(|k| {
-                p.velocity[k].abs() < p.stick_velocity
-                    && (p.input[k] - self.rest[k]).abs() <= self.limit
-            })
+        p.velocity
+            .iter()
+            .map(|v| v.abs() < p.stick_velocity)
             .collect()
     }
 
