@@ -365,7 +365,7 @@ impl StaticFriction {
 /// [`StaticFriction`] of a model from its columns (`None` without Coulomb friction, or for
 /// unquantised positions, where rest is not distinguishable from slow motion).
 pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option<StaticFriction> {
-    if !(p.stick_velocity > 0.0) {
+    if p.stick_velocity.is_nan() || p.stick_velocity <= 0.0 {
         return None;
     }
     let level = |kind: EffectKind| {
@@ -378,7 +378,7 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
             .sum::<f64>()
     };
     let limit = level(EffectKind::Coulomb) + level(EffectKind::Stribeck);
-    if !model.has(EffectKind::Coulomb) || !(limit > 0.0) {
+    if !model.has(EffectKind::Coulomb) || limit <= 0.0 {
         return None;
     }
     let owner = model.param_owners();
