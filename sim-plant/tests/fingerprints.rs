@@ -36,6 +36,7 @@ impl Run {
             acceleration: &self.a,
             raw_input: &self.u,
             raw_offset: 0,
+            raw_acceleration: &[],
             lowpass_hz: 0.0,
         }
     }

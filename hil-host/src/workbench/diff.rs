@@ -29,6 +29,19 @@ pub fn noise_gain(fc: f64, fs: f64) -> f64 {
         .sqrt()
 }
 
+/// RMS velocity of [`differentiate`] for unit white noise on the position (per sample).
+pub fn velocity_noise_gain(fc: f64, dt: f64) -> f64 {
+    let n = ((40.0 / (fc * dt)) as usize).clamp(64, 1 << 16);
+    let mut x = vec![0.0; n];
+    x[n / 2] = 1.0;
+    differentiate(&x, dt, fc)
+        .velocity
+        .iter()
+        .map(|h| h * h)
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// Smoothed position, velocity and acceleration.
 #[derive(Debug, Clone)]
 pub struct Derivatives {

@@ -59,6 +59,10 @@ pub struct Prepared {
     pub noise_floor: f64,
     /// Measured (raw) position.
     pub raw_position: Vec<f64>,
+    /// Acceleration over the whole record (edges included, indexed as `raw_input`): dynamic
+    /// fingerprints of the motion filter it from the record's start (see
+    /// `sim_plant::effects::Trajectory::raw_acceleration`).
+    pub raw_acceleration: Vec<f64>,
     /// Smoothed position.
     pub position: Vec<f64>,
     /// Velocity.
@@ -71,6 +75,10 @@ pub struct Prepared {
     pub cutoff_hz: f64,
     /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
     pub input_instrument: Vec<f64>,
+    /// Speed below which the joint may be stuck: 3σ of the differentiator's velocity noise for
+    /// the position's quantisation step (the smallest nonzero position change in the record;
+    /// about 0 for unquantised data). See [`static_friction`].
+    pub stick_velocity: f64,
 }
 
 impl Prepared {
@@ -92,9 +100,12 @@ impl Prepared {
             position: d.position[r.clone()].to_vec(),
             velocity: d.velocity[r.clone()].to_vec(),
             acceleration: d.acceleration[r].to_vec(),
+            raw_acceleration: d.acceleration.clone(),
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
+            stick_velocity: 3.0 * quantisation_step(&rec.output) / 12f64.sqrt()
+                * diff::velocity_noise_gain(fc, rec.dt),
         };
         p.input_instrument = instrument(&p);
         p
@@ -117,6 +128,7 @@ impl Prepared {
             acceleration: &self.acceleration,
             raw_input: &self.raw_input,
             raw_offset: self.raw_offset,
+            raw_acceleration: &self.raw_acceleration,
             lowpass_hz: self.cutoff_hz,
         }
     }
@@ -130,6 +142,17 @@ impl Prepared {
     pub fn is_empty(&self) -> bool {
         self.time.is_empty()
     }
+}
+
+/// Smallest nonzero change between successive samples of a position record (its encoder
+/// step when quantised); 0 for fewer than two samples.
+fn quantisation_step(x: &[f64]) -> f64 {
+    let range = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    x.windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|&d| d > 1e-12 * range)
+        .fold(f64::INFINITY, f64::min)
+        .min(range)
 }
 
 /// Motion-based reconstruction of the input: LS fit of the input on (a, v, sign v, 1).
@@ -257,9 +280,12 @@ pub struct Design {
     pub free: Vec<usize>,
 }
 
-/// Build the free-parameter regression of a model.
+/// Build the free-parameter regression of a model. Samples where the joint is held by static
+/// friction (see [`static_friction`]) carry no information on the amplitudes: their rows are
+/// zeroed.
 pub fn design(model: &Model, p: &Prepared) -> Design {
     let all = columns(model, p);
+    let stuck = static_friction(model, p, &all).map(|s| s.stuck(p));
     let params = model.params();
     let owner = model.param_owners();
     let mut y = p.input.clone();
@@ -275,7 +301,104 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
             }
         }
     }
+    if let Some(stuck) = stuck {
+        for (k, _) in stuck.iter().enumerate().filter(|(_, &s)| s) {
+            y[k] = 0.0;
+            for c in &mut cols {
+                c[k] = 0.0;
+            }
+        }
+    }
     Design { cols, y, free }
+}
+
+/// Whether an effect is part of the dry friction that holds a joint at rest (Coulomb, and the
+/// Stribeck excess that raises the breakaway level).
+fn dry_friction(kind: EffectKind) -> bool {
+    matches!(kind, EffectKind::Coulomb | EffectKind::Stribeck)
+}
+
+/// The stick state of a model with dry friction: a joint at rest is held by static friction,
+/// which is a reaction — it takes whatever value balances the rest of the torque, up to the
+/// breakaway level (Coulomb + Stribeck excess) — not `τc·sign(v)` of a velocity that is only
+/// sensor noise there. Where the measured speed is within the noise of rest
+/// (`Prepared::stick_velocity`) the prediction's dry friction is the balancing torque clipped
+/// to the breakaway level, as in the simulator's stick state: exact when it balances, the
+/// excess when the joint should have broken away.
+#[derive(Debug, Clone)]
+pub struct StaticFriction {
+    /// The prediction without dry friction.
+    rest: Vec<f64>,
+    /// The dry friction's prediction while sliding.
+    sliding: Vec<f64>,
+    /// Breakaway level.
+    limit: f64,
+}
+
+impl StaticFriction {
+    /// Samples at rest. All of them, not only those whose balancing torque the current
+    /// breakaway level holds: that choice would depend on the amplitudes being fitted and
+    /// reward a larger level with fewer rows to explain (a Coulomb term would grow to cover a
+    /// Stribeck excess at rest).
+    fn stuck(&self, p: &Prepared) -> Vec<bool> {
+        p.velocity
+            .iter()
+            .map(|v| v.abs() < p.stick_velocity)
+            .collect()
+    }
+
+    /// The prediction with the stick state.
+    fn predict(&self, p: &Prepared) -> Vec<f64> {
+        (0..p.len())
+            .map(|k| {
+                let f = if p.velocity[k].abs() < p.stick_velocity {
+                    (p.input[k] - self.rest[k]).clamp(-self.limit, self.limit)
+                } else {
+                    self.sliding[k]
+                };
+                self.rest[k] + f
+            })
+            .collect()
+    }
+}
+
+/// [`StaticFriction`] of a model from its columns (`None` without Coulomb friction, or for
+/// unquantised positions, where rest is not distinguishable from slow motion).
+pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option<StaticFriction> {
+    if p.stick_velocity.is_nan() || p.stick_velocity <= 0.0 {
+        return None;
+    }
+    let level = |kind: EffectKind| {
+        model
+            .effects
+            .iter()
+            .filter(|e| e.kind == kind)
+            .filter_map(|e| e.params.first())
+            .map(|q| q.value.max(0.0))
+            .sum::<f64>()
+    };
+    let limit = level(EffectKind::Coulomb) + level(EffectKind::Stribeck);
+    if !model.has(EffectKind::Coulomb) || limit <= 0.0 {
+        return None;
+    }
+    let owner = model.param_owners();
+    let mut rest = vec![0.0; p.len()];
+    let mut sliding = vec![0.0; p.len()];
+    for ((c, par), o) in cols.iter().zip(model.params()).zip(owner) {
+        let target = if o.is_some_and(dry_friction) {
+            &mut sliding
+        } else {
+            &mut rest
+        };
+        for (t, x) in target.iter_mut().zip(c) {
+            *t += par.value * x;
+        }
+    }
+    Some(StaticFriction {
+        rest,
+        sliding,
+        limit,
+    })
 }
 
 /// Fit all free amplitudes by linear least squares; writes values and 1σ into the model.
@@ -293,6 +416,9 @@ pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
 /// Equation-error prediction of the input.
 pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
     let cols = columns(model, p);
+    if let Some(s) = static_friction(model, p, &cols) {
+        return s.predict(p);
+    }
     let mut u = vec![0.0; p.len()];
     for (c, par) in cols.iter().zip(model.params()) {
         for (uu, x) in u.iter_mut().zip(c) {
@@ -355,6 +481,7 @@ pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -
         acceleration: &as_,
         raw_input: &us,
         raw_offset: 0,
+        raw_acceleration: &[],
         lowpass_hz: 0.0,
     };
     let mut f = 0.0;

@@ -121,7 +121,6 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 /// carrying b), amplitude −J2/J1 as before. The acceleration is already low-passed as the
 /// residual was.
 fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
-    let n = traj.len();
     let ratio = shape.compliance_ratio.max(0.0);
     let s = (1.0 + ratio).sqrt();
     let (f2, z2) = (shape.compliance_frequency / s, shape.compliance_damping / s);
@@ -131,14 +130,19 @@ fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
     } else {
         0.0
     };
+    // Filtered from the record's start: the mode rings for 1/(ζ₂ω₂) (0.3 s and more at the
+    // light damping of a transmission), so a filter started at rest where the trajectory
+    // begins would miss the ringing of any transient before it.
+    let (a, window) = traj.recorded_acceleration();
     let y = biquad2(
-        &traj.acceleration[..n],
+        a,
         [1.0, 2.0 * beta, beta * beta],
         f2,
         z2,
         1.0 / traj.dt,
     );
-    y.iter()
+    y[window]
+        .iter()
         .map(|v| shape.compliance_near_inertia * v)
         .collect()
 }

@@ -54,8 +54,14 @@ pub struct Trajectory<'a> {
     /// trajectory (the whole record, of which the trajectory is a window starting at
     /// `raw_offset`), so that filters see the command's history and not a start-up transient.
     pub raw_input: &'a [f64],
-    /// Index in `raw_input` of the trajectory's first sample.
+    /// Index in `raw_input` (and `raw_acceleration`) of the trajectory's first sample.
     pub raw_offset: usize,
+    /// The acceleration over the same whole record as `raw_input` (empty when not available:
+    /// the trajectory's own is used). Fingerprints that are a *dynamic* function of the motion
+    /// (compliance's motion form) are filtered from the record's start, so that a lightly damped
+    /// filter does not start with a wrong state where the trajectory begins (its free response
+    /// would then be an error lasting several time constants).
+    pub raw_acceleration: &'a [f64],
     /// Cut-off (Hz) of the zero-phase low-pass ([`signal::filtfilt`]) the residual went through
     /// (the smoothing differentiator's); 0 = none. Fingerprints built from `raw_input` apply it
     /// so that they see the bandwidth the residual saw.
@@ -89,6 +95,17 @@ impl Trajectory<'_> {
             (self.raw_input, self.raw_offset..self.raw_offset + n)
         } else {
             (&self.input[..n], 0..n)
+        }
+    }
+
+    /// The acceleration over the whole record and the window of it the trajectory covers
+    /// (`raw_acceleration` if it covers the trajectory at `raw_offset`, else `acceleration`).
+    pub fn recorded_acceleration(&self) -> (&[f64], std::ops::Range<usize>) {
+        let n = self.len();
+        if self.raw_acceleration.len() >= self.raw_offset + n {
+            (self.raw_acceleration, self.raw_offset..self.raw_offset + n)
+        } else {
+            (&self.acceleration[..n], 0..n)
         }
     }
 
@@ -470,6 +487,7 @@ mod tests {
             acceleration: &a,
             raw_input: &u,
             raw_offset: 0,
+            raw_acceleration: &[],
             lowpass_hz: 0.0,
         };
         for k in EffectKind::ALL {

@@ -128,7 +128,22 @@ fn main() {
     let mut unstable = 0usize;
     let mut sorted = results;
     sorted.sort_by_key(|(k, _)| *k);
+    let list = std::env::var_os("HIDDEN_LIST").is_some();
     for (k, o) in sorted {
+        if list {
+            // One line per trial (`HIDDEN_LIST=1`): the seed and ρ to re-run it with `one`.
+            if let Some(o) = &o {
+                let (_, seed, fams, rho) = &jobs[k];
+                let names: Vec<&str> = fams.iter().map(|f| f.name()).collect();
+                println!(
+                    "trial {} {seed} {rho}: ρ {:.2} top {:?} val/floor {:.3}",
+                    names.join("+"),
+                    o.rho,
+                    o.top,
+                    o.val_ratio
+                );
+            }
+        }
         match (jobs[k].0, o) {
             (_, None) => unstable += 1,
             (0, Some(o)) => {
