@@ -378,6 +378,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             }
             EffectKind::Compliance => search_compliance(model, p, e),
             EffectKind::Quantization => search_quantum(model, p, e),
+            EffectKind::Stribeck => search_stick(model, p, e),
             _ => {}
         }
     }
@@ -491,6 +492,92 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
         }
     }
     *model = command_form;
+}
+
+/// Sets the stick window of the stribeck effect `e` and of the dry-friction terms it gates.
+fn set_stick(m: &mut Model, e: usize, vh: f64) {
+    let vh = vh.max(0.0);
+    m.effects[e].shape.stick_velocity = vh;
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            x.shape.stick_velocity = vh;
+        }
+    }
+}
+
+/// Stribeck: the refit's form of the column (see `sim_plant::effects::stribeck::fingerprint`:
+/// slip, bristle transient, stick hold), its shapes searched in turn:
+///
+/// * the hold's amplitude is held at 1 — at rest the friction *is* the applied torque; a free
+///   amplitude is not identified on a record that never sticks, and on one that does it only
+///   trades with the motion terms;
+/// * the sign shape (ε, lead) jointly with Coulomb's ([`search_dry_sign`]): the excess flips
+///   with the Coulomb level at each reversal, and being the larger part near v = 0 it decides
+///   where the flip is;
+/// * the stick window vh on a log grid of 1e-4…1e-2 of the top speed, then golden section
+///   (the motion terms are not gated, so a window wider than the rest's velocity noise costs
+///   at every fast reversal and the RSS has an interior minimum);
+/// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
+///   once the stick phases are no longer its to explain. LM then refines vs.
+fn search_stick(model: &mut Model, p: &Prepared, e: usize) {
+    let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if vmax.is_nan() || vmax <= 0.0 {
+        return;
+    }
+    if let Some(h) = model.effects[e].params.get_mut(2) {
+        h.value = 1.0;
+        h.free = false;
+    }
+    search_dry_sign(model, p, e);
+    let xs = sim_plant::effects::signal::log_space(1e-4 * vmax, 1e-2 * vmax, 9);
+    let (v0, _) = line_search(model, p, e, &xs, &set_stick);
+    if v0 > 0.0 {
+        let set_l = |m: &mut Model, e: usize, x: f64| set_stick(m, e, x.exp());
+        let l = v0.ln();
+        golden(model, p, e, (l - 0.6, l + 0.6), l, 10, &set_l);
+    }
+    let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
+    let set_vs = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_velocity = x;
+    let set_d = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_exponent = x;
+    let mut vss: Vec<f64> = grid.iter().map(|s| s.stribeck_velocity).collect();
+    vss.sort_by(f64::total_cmp);
+    vss.dedup();
+    let mut ds: Vec<f64> = grid.iter().map(|s| s.stribeck_exponent).collect();
+    ds.sort_by(f64::total_cmp);
+    ds.dedup();
+    grid_search(model, p, e, &ds, &set_d, &vss, &set_vs);
+}
+
+/// Sets the sign shape of effect `e` and of every Coulomb / asymmetry term: dry friction
+/// reverses as one.
+fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
+    f(&mut m.effects[e].shape);
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            f(&mut x.shape);
+        }
+    }
+}
+
+/// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms': the
+/// same joint grid and golden section as Coulomb's own search (see `search_each`).
+fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize) {
+    let dt = p.dt;
+    let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
+    let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
+    let leads: Vec<f64> = [
+        -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+    ]
+    .iter()
+    .map(|k| k * dt)
+    .collect();
+    let eps: Vec<f64> = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+        .iter()
+        .map(|s| s.sign_epsilon)
+        .collect();
+    grid_search(model, p, e, &eps, &set_eps, &leads, &set_lead);
+    let l = model.effects[e].shape.sign_lead;
+    golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {

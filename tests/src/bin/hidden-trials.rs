@@ -124,7 +124,23 @@ fn main() {
     let mut unstable = 0usize;
     let mut sorted = results;
     sorted.sort_by_key(|(k, _)| *k);
+    // `HIDDEN_LIST=1`: one line per trial (seed, measured ρ, rank-1, validation ratio).
+    let list = std::env::var_os("HIDDEN_LIST").is_some();
     for (k, o) in sorted {
+        if list {
+            let (_, seed, fams, _) = &jobs[k];
+            let names: Vec<&str> = fams.iter().map(|f| f.name()).collect();
+            match &o {
+                Some(o) => eprintln!(
+                    "trial {seed} {} rho {:.2} top {} val/floor {:.3}",
+                    names.join("+"),
+                    o.rho,
+                    o.top.as_deref().unwrap_or("-"),
+                    o.val_ratio
+                ),
+                None => eprintln!("trial {seed} {} unstable", names.join("+")),
+            }
+        }
         match (jobs[k].0, o) {
             (_, None) => unstable += 1,
             (0, Some(o)) => all.push(o),
