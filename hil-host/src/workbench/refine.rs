@@ -954,6 +954,9 @@ fn choose(
         let kind = c.kind.expect("kind");
         let mut m = model.clone();
         m.add(kind, c.shape.clone());
+        if !coherent(&m) {
+            continue;
+        }
         refit_all(&mut m, p)?;
         if m.physical().is_err() {
             // e.g. a quantiser gain fitted above 1: not an explanation the simulator can hold
@@ -971,6 +974,14 @@ fn choose(
         }
     }
     Ok(best.map(|(_, c, m)| (c, m)))
+}
+
+/// Whether `m` is a model `--auto` may hold: stribeck is the excess of stiction *above* a
+/// Coulomb level, so it needs the Coulomb term. Alone, its stick hold and a slow decay stand
+/// in for Coulomb friction on the estimation record (a joint with plain Coulomb friction
+/// sticks too) and beat it on BIC, while the decaying curve mispredicts faster motion.
+fn coherent(m: &Model) -> bool {
+    !m.has(EffectKind::Stribeck) || m.has(EffectKind::Coulomb)
 }
 
 /// BIC decrease a closing swap must achieve (2: "positive evidence" on Kass & Raftery's scale).
@@ -1024,7 +1035,7 @@ fn swap_pass(
         let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
-            if m.physical().is_err() {
+            if m.physical().is_err() || !coherent(&m) {
                 return;
             }
             let b = bic(&m, p);
