@@ -10,7 +10,7 @@
 //! Before LM, searches least squares cannot do (see `search_shapes`): a delay's τ on the
 //! input actually delayed, Coulomb's sign lead and smoothing, the ripple period on a fine
 //! grid, the compliance mode (and the motion form of its column), the quantiser step and the
-//! blur of its sawtooth.
+//! blur of its sawtooth, Stribeck's stick window (at rest the friction is the applied torque).
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -271,6 +271,9 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   and in the motion form of the column (see `search_compliance`).
 /// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
 ///   `search_quantum`).
+/// * **Stribeck**: the refit's form of its column — stick hold, bristle transient — with the
+///   stick window, the dry-friction sign shape shared with Coulomb, and vs × δ (see
+///   `search_stick`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
@@ -524,7 +527,11 @@ fn search_stick(model: &mut Model, p: &Prepared, e: usize) {
     if vmax.is_nan() || vmax <= 0.0 {
         return;
     }
-    if let Some(h) = model.effects[e].params.get_mut(2) {
+    if let Some(h) = model.effects[e]
+        .params
+        .iter_mut()
+        .find(|q| q.name == "hold")
+    {
         h.value = 1.0;
         h.free = false;
     }

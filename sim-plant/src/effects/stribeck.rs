@@ -182,3 +182,54 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The refit's form: at rest the hold column is the recorded input and the slip column is
+    /// off; sliding, the slip column is the diagnosis's and the transient is a·de/d|v|.
+    #[test]
+    fn refit_form_holds_at_rest_and_slides_otherwise() {
+        let v = [0.0, 1e-4, 0.05, -0.05, 1.0];
+        let a = [0.3, -0.2, 2.0, 2.0, 0.0];
+        let u = [0.7, -0.4, 1.0, 1.0, 1.0];
+        let q = [0.0; 5];
+        let traj = Trajectory {
+            dt: 1e-3,
+            input: &u,
+            position: &q,
+            velocity: &v,
+            acceleration: &a,
+            raw_input: &u,
+            raw_offset: 0,
+            lowpass_hz: 0.0,
+        };
+        let mut shape = Shape {
+            stribeck_velocity: 0.1,
+            stribeck_exponent: 2.0,
+            sign_epsilon: 1e-6,
+            ..Shape::default()
+        };
+        let slip_only = fingerprint(&traj, &shape);
+        assert_eq!(slip_only.len(), 1);
+        shape.stick_velocity = 0.01;
+        let c = fingerprint(&traj, &shape);
+        assert_eq!(c.len(), 3);
+        // At rest: hold = u, slip and transient off.
+        for i in 0..2 {
+            assert!((c[2][i] - u[i]).abs() < 1e-9, "hold {i}");
+            assert!(c[0][i].abs() < 1e-9 && c[1][i].abs() < 1e-9, "slip {i}");
+        }
+        // Sliding: the diagnosis's slip column, no hold.
+        for i in 2..5 {
+            assert!(c[2][i].abs() < 1e-9);
+            assert!((c[0][i] - slip_only[0][i]).abs() < 1e-9);
+        }
+        // Transient = a·d/d|v| exp(−(|v|/vs)²), by a central difference.
+        let h = 1e-7;
+        let e = |x: f64| (-(x / 0.1f64).powi(2)).exp();
+        let want = 2.0 * (e(0.05 + h) - e(0.05 - h)) / (2.0 * h);
+        assert!((c[1][2] - want).abs() < 1e-5 && (c[1][3] - want).abs() < 1e-5);
+    }
+}
