@@ -246,6 +246,8 @@ impl Model {
             for (i, p) in entry.params.iter_mut().enumerate() {
                 let (v, free) = match (kind, by_name(&p.name)) {
                     (_, Some(q)) => (q.value, q.free),
+                    // Equation-error-only amplitudes keep what `EffectEntry::new` gave them.
+                    (EffectKind::Stribeck, None) => (p.value, p.free),
                     (EffectKind::Backlash, None) => (j_far, sim.plant.output_inertia.free),
                     (EffectKind::Compliance, None) => {
                         let far = if j_far > 0.0 { j_far } else { 0.5 * j };
@@ -402,7 +404,8 @@ impl Model {
 }
 
 impl EffectEntry {
-    /// An effect with free zero amplitudes.
+    /// An effect with free zero amplitudes — except stribeck's `hold`, fixed at 1: at rest the
+    /// friction is the applied torque (see `sim_plant::effects::stribeck::fingerprint`).
     pub fn new(kind: EffectKind, shape: Shape) -> Self {
         EffectEntry {
             kind,
@@ -410,7 +413,13 @@ impl EffectEntry {
             params: kind
                 .param_names()
                 .iter()
-                .map(|n| Param::free(n, 0.0))
+                .map(|&n| match (kind, n) {
+                    (EffectKind::Stribeck, "hold") => Param {
+                        free: false,
+                        ..Param::free(n, 1.0)
+                    },
+                    _ => Param::free(n, 0.0),
+                })
                 .collect(),
         }
     }

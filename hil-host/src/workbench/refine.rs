@@ -10,7 +10,8 @@
 //! searches least squares cannot do (see `search_shapes`): a delay's τ on the input actually
 //! delayed, Coulomb's sign lead and smoothing, the ripple period on a fine grid, the
 //! compliance mode (and the motion form of its column), the quantiser step and the blur of
-//! its sawtooth, the backlash width and the load's time constant.
+//! its sawtooth, the backlash width and the load's time constant, Stribeck's stick window (at
+//! rest the friction is the applied torque).
 //!
 //! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
 //! (BIC); when nothing significant is left it probes for a delay on the measured input, then
@@ -273,6 +274,9 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   `search_quantum`).
 /// * **Backlash**: the gap width and the load's time constant by a joint grid and golden
 ///   sections (see `search_backlash`).
+/// * **Stribeck**: the refit's form of its column — stick hold, bristle transient — with the
+///   stick window, the dry-friction sign shape shared with Coulomb, and vs × δ (see
+///   `search_stick`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
 fn search_shapes(model: &mut Model, p: &Prepared) {
@@ -381,6 +385,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             EffectKind::Compliance => search_compliance(model, p, e),
             EffectKind::Quantization => search_quantum(model, p, e),
             EffectKind::Backlash => search_backlash(model, p, e),
+            EffectKind::Stribeck => search_stick(model, p, e),
             _ => {}
         }
     }
@@ -547,6 +552,96 @@ fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
         let lb = model.effects[e].shape.backlash_width.ln();
         golden(model, p, e, (lb - 0.015, lb + 0.015), lb, 8, &set_lb);
     }
+}
+
+/// Sets the stick window of the stribeck effect `e` and of the dry-friction terms it gates.
+fn set_stick(m: &mut Model, e: usize, vh: f64) {
+    let vh = vh.max(0.0);
+    m.effects[e].shape.stick_velocity = vh;
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            x.shape.stick_velocity = vh;
+        }
+    }
+}
+
+/// Stribeck: the refit's form of the column (see `sim_plant::effects::stribeck::fingerprint`:
+/// slip, bristle transient, stick hold), its shapes searched in turn:
+///
+/// * the hold's amplitude is held at 1 — at rest the friction *is* the applied torque; a free
+///   amplitude is not identified on a record that never sticks, and on one that does it only
+///   trades with the motion terms;
+/// * the sign shape (ε, lead) jointly with Coulomb's ([`search_dry_sign`]): the excess flips
+///   with the Coulomb level at each reversal, and being the larger part near v = 0 it decides
+///   where the flip is;
+/// * the stick window vh on a log grid of 1e-4…1e-2 of the top speed, then golden section
+///   (the motion terms are not gated, so a window wider than the rest's velocity noise costs
+///   at every fast reversal and the RSS has an interior minimum);
+/// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
+///   once the stick phases are no longer its to explain. LM then refines vs.
+fn search_stick(model: &mut Model, p: &Prepared, e: usize) {
+    let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if vmax.is_nan() || vmax <= 0.0 {
+        return;
+    }
+    if let Some(h) = model.effects[e]
+        .params
+        .iter_mut()
+        .find(|q| q.name == "hold")
+    {
+        h.value = 1.0;
+        h.free = false;
+    }
+    search_dry_sign(model, p, e);
+    let xs = sim_plant::effects::signal::log_space(1e-4 * vmax, 1e-2 * vmax, 9);
+    let (v0, _) = line_search(model, p, e, &xs, &set_stick);
+    if v0 > 0.0 {
+        let set_l = |m: &mut Model, e: usize, x: f64| set_stick(m, e, x.exp());
+        let l = v0.ln();
+        golden(model, p, e, (l - 0.6, l + 0.6), l, 10, &set_l);
+    }
+    let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
+    let set_vs = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_velocity = x;
+    let set_d = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_exponent = x;
+    let mut vss: Vec<f64> = grid.iter().map(|s| s.stribeck_velocity).collect();
+    vss.sort_by(f64::total_cmp);
+    vss.dedup();
+    let mut ds: Vec<f64> = grid.iter().map(|s| s.stribeck_exponent).collect();
+    ds.sort_by(f64::total_cmp);
+    ds.dedup();
+    grid_search(model, p, e, &ds, &set_d, &vss, &set_vs);
+}
+
+/// Sets the sign shape of effect `e` and of every Coulomb / asymmetry term: dry friction
+/// reverses as one.
+fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
+    f(&mut m.effects[e].shape);
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            f(&mut x.shape);
+        }
+    }
+}
+
+/// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms': the
+/// same joint grid and golden section as Coulomb's own search (see `search_each`).
+fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize) {
+    let dt = p.dt;
+    let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
+    let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
+    let leads: Vec<f64> = [
+        -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+    ]
+    .iter()
+    .map(|k| k * dt)
+    .collect();
+    let eps: Vec<f64> = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+        .iter()
+        .map(|s| s.sign_epsilon)
+        .collect();
+    grid_search(model, p, e, &eps, &set_eps, &leads, &set_lead);
+    let l = model.effects[e].shape.sign_lead;
+    golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {
@@ -923,6 +1018,9 @@ fn choose(
         let kind = c.kind.expect("kind");
         let mut m = model.clone();
         m.add(kind, c.shape.clone());
+        if !coherent(&m) {
+            continue;
+        }
         refit_all(&mut m, p)?;
         if m.physical().is_err() {
             // e.g. a quantiser gain fitted above 1: not an explanation the simulator can hold
@@ -940,6 +1038,14 @@ fn choose(
         }
     }
     Ok(best.map(|(_, c, m)| (c, m)))
+}
+
+/// Whether `m` is a model `--auto` may hold: stribeck is the excess of stiction *above* a
+/// Coulomb level, so it needs the Coulomb term. Alone, its stick hold and a slow decay stand
+/// in for Coulomb friction on the estimation record (a joint with plain Coulomb friction
+/// sticks too) and beat it on BIC, while the decaying curve mispredicts faster motion.
+fn coherent(m: &Model) -> bool {
+    !m.has(EffectKind::Stribeck) || m.has(EffectKind::Coulomb)
 }
 
 /// BIC decrease a closing swap must achieve (2: "positive evidence" on Kass & Raftery's scale).
@@ -993,7 +1099,7 @@ fn swap_pass(
         let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
-            if m.physical().is_err() {
+            if m.physical().is_err() || !coherent(&m) {
                 return;
             }
             let b = bic(&m, p);

@@ -40,15 +40,24 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 }
 
 /// `[step_ε(v + lead·a), max(v, 0)]` (lead = `Shape::sign_lead`, 0 by default; a fitter
-/// gives it Coulomb's, so both friction levels switch at the same moment).
+/// gives it Coulomb's, so both friction levels switch at the same moment). The step is off
+/// inside a stick window like Coulomb's (`Shape::stick_velocity`).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let v = &traj.velocity[..n];
     let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
+    let vh = shape.stick_velocity;
     vec![
         v.iter()
             .zip(&traj.acceleration[..n])
-            .map(|(&v, &a)| 0.5 * (1.0 + smooth_sign(v + lead * a, eps)))
+            .map(|(&v, &a)| {
+                let step = 0.5 * (1.0 + smooth_sign(v + lead * a, eps));
+                if vh > 0.0 {
+                    (1.0 - super::stribeck::stick_window(v, vh)) * step
+                } else {
+                    step
+                }
+            })
             .collect(),
         v.iter().map(|&v| v.max(0.0)).collect(),
     ]

@@ -35,14 +35,24 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     laws.friction.coulomb_neg += p.torque.value;
 }
 
-/// `[sign_ε(v + lead·a)]` (lead = `Shape::sign_lead`, 0 by default: `[sign_ε(v)]`).
+/// `[sign_ε(v + lead·a)]` (lead = `Shape::sign_lead`, 0 by default: `[sign_ε(v)]`), times
+/// `1 − w(v)` inside a stick window (`Shape::stick_velocity` > 0, see
+/// [`super::stribeck::fingerprint`]): at rest the stiction hold is the friction.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     let n = traj.len();
+    let vh = shape.stick_velocity;
     vec![traj.velocity[..n]
         .iter()
         .zip(&traj.acceleration[..n])
-        .map(|(&v, &a)| smooth_sign(v + lead * a, eps))
+        .map(|(&v, &a)| {
+            let s = smooth_sign(v + lead * a, eps);
+            if vh > 0.0 {
+                (1.0 - super::stribeck::stick_window(v, vh)) * s
+            } else {
+                s
+            }
+        })
         .collect()]
 }
 

@@ -192,6 +192,11 @@ pub struct Shape {
     /// reversal is offset from the measured velocity reversal by a fraction of a millisecond
     /// to a few milliseconds (negative = lag). 0 = the static sign(v).
     pub sign_lead: f64,
+    /// Stribeck (and, copied by a fitter, Coulomb and asymmetry): velocity scale vh of the stick
+    /// window exp(−(v/vh)⁴) inside which the joint counts as at rest — the friction is then
+    /// the stribeck hold column (the applied torque) and the dry-friction slip columns are
+    /// off (see `stribeck::fingerprint`). 0 = no window (the diagnosis's columns).
+    pub stick_velocity: f64,
 }
 
 impl Default for Shape {
@@ -216,6 +221,7 @@ impl Default for Shape {
             compliance_ratio: 0.0,
             compliance_load_damping: 0.0,
             sign_lead: 0.0,
+            stick_velocity: 0.0,
         }
     }
 }

@@ -6,7 +6,8 @@
 //! stick state itself (hold below breakaway, release above) lives in the integrator.
 //!
 //! Fingerprint: `[sign_ε(v)·exp(−(|v|/vs)^δ)]`, shapes vs and δ (thesis-notes §7.2/7.3: residual
-//! peaks near velocity zero-crossings and grows as speed falls).
+//! peaks near velocity zero-crossings and grows as speed falls). The refit's form adds the
+//! bristle-damping transient and the stick hold (see [`fingerprint`]).
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
@@ -16,8 +17,10 @@ pub const DESCRIBE: &str = "stiction above Coulomb with a Stribeck transition, \
      τc + Δ·exp(-(|v|/vs)^δ); residual peaks at low speed and velocity zero-crossings, \
      delayed breakaway, stick-slip";
 
-/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names).
-pub const AMPLITUDES: &[&str] = &["excess"];
+/// Names of the fingerprint columns' amplitudes, in column order (the fitter's names). Only
+/// `excess` is a simulator parameter: the refit's `transient` (Δ·σ1/σ0) and `hold` (1) are the
+/// equation-error view of what the simulator's stick state and friction dynamics do.
+pub const AMPLITUDES: &[&str] = &["excess", "transient", "hold"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
@@ -100,14 +103,67 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     f.stribeck_exponent = p.exponent.value;
 }
 
-/// `[sign_ε(v)·exp(−(|v|/vs)^δ)]` (exact exponent, no cut-off).
+/// `[sign_ε(v + lead·a)·exp(−(|v|/vs)^δ)]` (exact exponent, no cut-off; lead =
+/// `Shape::sign_lead`, which a fitter shares with Coulomb) — the diagnosis's column.
+///
+/// With a stick window (`Shape::stick_velocity` = vh > 0, set by the refit) three columns,
+/// w = [`stick_window`]`(v, vh)`:
+///
+/// * **slip** `(1 − w)·sign_ε(v + lead·a)·e(|v|)`, e = exp(−(|v|/vs)^δ), amplitude `excess`;
+/// * **transient** `(1 − w)·a·e'(|v|)`: the bristle damping of dynamic (LuGre) friction. While
+///   sliding, the bristle deflection z tracks its steady state g(|v|)·sign(v)/σ0, so its rate
+///   is ż = g'(|v|)·a/σ0 and the damping adds σ1·ż = (σ1/σ0)·Δ·e'(|v|)·a: an
+///   acceleration-proportional torque across the Stribeck transition, which a static curve
+///   leaves to the inertia (a biased J that then mispredicts faster records). Amplitude
+///   `transient` = Δ·σ1/σ0 (N·m·s);
+/// * **hold** `w·u` (u = the recorded input): at rest dry friction is a constraint torque,
+///   whatever holds the joint up to breakaway (Karnopp's model). A static law sign(v)·g(v)
+///   evaluated on a measured velocity that is noise around zero predicts a random ±τs there,
+///   while the truth is the applied torque; the stick phases then dominate the residual and
+///   bias every other parameter. Amplitude `hold`, physically 1 (the refit holds it there).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let vs = positive_or(shape.stribeck_velocity, 1e-3);
     let d = shape.stribeck_exponent;
-    vec![traj.velocity[..traj.len()]
+    let n = traj.len();
+    let (v, a) = (&traj.velocity[..n], &traj.acceleration[..n]);
+    let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
+    let slip = v
         .iter()
-        .map(|&v| smooth_sign(v, shape.sign_epsilon) * (-(v.abs() / vs).powf(d)).exp())
-        .collect()]
+        .zip(a)
+        .map(|(&v, &a)| smooth_sign(v + lead * a, eps) * (-(v.abs() / vs).powf(d)).exp());
+    let vh = shape.stick_velocity;
+    let Some(u) = traj.raw_input.get(traj.raw_offset..traj.raw_offset + n) else {
+        return vec![slip.collect()];
+    };
+    if vh <= 0.0 {
+        return vec![slip.collect()];
+    }
+    let w: Vec<f64> = v.iter().map(|&v| stick_window(v, vh)).collect();
+    // d/d|v| exp(−x^δ), x = |v|/vs: −(δ/vs)·x^(δ−1)·exp(−x^δ).
+    let de = |v: f64| {
+        let x = v.abs() / vs;
+        -d / vs * x.powf(d - 1.0) * (-x.powf(d)).exp()
+    };
+    vec![
+        slip.zip(&w).map(|(s, w)| (1.0 - w) * s).collect(),
+        v.iter()
+            .zip(a)
+            .zip(&w)
+            .map(|((&v, &a), w)| (1.0 - w) * a * de(v))
+            .collect(),
+        w.iter().zip(u).map(|(w, u)| w * u).collect(),
+    ]
+}
+
+/// Weight of "stuck" at measured velocity `v`: exp(−(v/vh)⁴), ≈ 1 for |v| < vh/2 (the
+/// measured velocity of a joint at rest is the differentiator's noise), ≈ 0 beyond 1.5·vh.
+/// Dry-friction columns of other effects (Coulomb, asymmetry) are switched off by the same
+/// window: at rest the hold column is the friction.
+#[inline]
+pub fn stick_window(v: f64, vh: f64) -> f64 {
+    let x = v / vh;
+    let x2 = x * x;
+    (-(x2 * x2)).exp()
 }
 
 /// Log grid of vs from 0.3 % to 30 % of the largest |v|, for δ = 1 and 2.
@@ -125,4 +181,56 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The refit's form: at rest the hold column is the recorded input and the slip column is
+    /// off; sliding, the slip column is the diagnosis's and the transient is a·de/d|v|.
+    #[test]
+    fn refit_form_holds_at_rest_and_slides_otherwise() {
+        let v = [0.0, 1e-4, 0.05, -0.05, 1.0];
+        let a = [0.3, -0.2, 2.0, 2.0, 0.0];
+        let u = [0.7, -0.4, 1.0, 1.0, 1.0];
+        let q = [0.0; 5];
+        let traj = Trajectory {
+            dt: 1e-3,
+            input: &u,
+            position: &q,
+            velocity: &v,
+            acceleration: &a,
+            raw_input: &u,
+            raw_offset: 0,
+            raw_acceleration: &[],
+            lowpass_hz: 0.0,
+        };
+        let mut shape = Shape {
+            stribeck_velocity: 0.1,
+            stribeck_exponent: 2.0,
+            sign_epsilon: 1e-6,
+            ..Shape::default()
+        };
+        let slip_only = fingerprint(&traj, &shape);
+        assert_eq!(slip_only.len(), 1);
+        shape.stick_velocity = 0.01;
+        let c = fingerprint(&traj, &shape);
+        assert_eq!(c.len(), 3);
+        // At rest: hold = u, slip and transient off.
+        for i in 0..2 {
+            assert!((c[2][i] - u[i]).abs() < 1e-6, "hold {i}");
+            assert!(c[0][i].abs() < 1e-6 && c[1][i].abs() < 1e-6, "slip {i}");
+        }
+        // Sliding: the diagnosis's slip column, no hold.
+        for i in 2..5 {
+            assert!(c[2][i].abs() < 1e-9);
+            assert!((c[0][i] - slip_only[0][i]).abs() < 1e-9);
+        }
+        // Transient = a·d/d|v| exp(−(|v|/vs)²), by a central difference.
+        let h = 1e-7;
+        let e = |x: f64| (-(x / 0.1f64).powi(2)).exp();
+        let want = 2.0 * (e(0.05 + h) - e(0.05 - h)) / (2.0 * h);
+        assert!((c[1][2] - want).abs() < 1e-5 && (c[1][3] - want).abs() < 1e-5);
+    }
 }
