@@ -97,8 +97,11 @@ fn scatter(u: &[f64]) -> f64 {
 }
 
 /// Steps log-spaced (≈ 6 % apart) from 0.3× the command's sample-to-sample scatter (or a
-/// hundredth of its range if smaller) to its peak |u| (a command swinging ±|u| crosses at least two
-/// steps; a coarse D/A with few steps across the range is the strongest case). The sawtooth of
+/// hundredth of its range if smaller) to ⅔ of its peak |u|, so a command swinging ±|u| spans at
+/// least three levels (−Δ, 0, Δ). A coarse D/A with few steps across the range is the
+/// strongest case (capped at a third of the peak, such a quantiser was fitted as a third of its
+/// step with gain 3); a coarser grid point would be a two-level relay whose sawtooth stands
+/// in for other reversal effects (backlash chatter ranked as quantization). The sawtooth of
 /// a wrong step decorrelates quickly, hence the fine spacing; [`refine_grid`] polishes it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let (u, window) = traj.recorded_input();
@@ -107,7 +110,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let range = positive_or(range, 1.0);
     let lo = positive_or(scatter(u), 1e-3 * range);
     let lo = (0.3 * lo).min(0.01 * range);
-    let hi = range.max(lo);
+    let hi = (range / 1.5).max(lo);
     let count = (((hi / lo).ln() / 1.06f64.ln()).ceil() as usize).max(1);
     log_space(lo, hi, count)
         .into_iter()
