@@ -341,21 +341,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             EffectKind::Coulomb => {
                 let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
                 let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
-                let leads: Vec<f64> = [
-                    -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
-                ]
-                .iter()
-                .map(|k| k * dt)
-                .collect();
-                let eps: Vec<f64> =
-                    sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
-                        .iter()
-                        .map(|s| s.sign_epsilon)
-                        .collect();
-                // Joint grid (the two trade off against each other), then the lead refined.
-                grid_search(model, p, e, &eps, &set_eps, &leads, &set_lead);
-                let l = model.effects[e].shape.sign_lead;
-                golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
+                search_sign(model, p, e, &set_eps, &set_lead);
             }
             EffectKind::Ripple => {
                 let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
@@ -623,12 +609,24 @@ fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
     }
 }
 
-/// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms': the
-/// same joint grid and golden section as Coulomb's own search (see `search_each`).
+/// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms' (see
+/// [`search_sign`]).
 fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize) {
-    let dt = p.dt;
     let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
     let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
+    search_sign(model, p, e, &set_eps, &set_lead);
+}
+
+/// A dry-friction sign shape: smoothing ε (Coulomb's grid) × sign lead (−6…8 samples) on a
+/// joint grid — the two trade off against each other — then the lead by golden section.
+fn search_sign(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    set_eps: &dyn Fn(&mut Model, usize, f64),
+    set_lead: &dyn Fn(&mut Model, usize, f64),
+) {
+    let dt = p.dt;
     let leads: Vec<f64> = [
         -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
     ]
@@ -639,9 +637,9 @@ fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize) {
         .iter()
         .map(|s| s.sign_epsilon)
         .collect();
-    grid_search(model, p, e, &eps, &set_eps, &leads, &set_lead);
+    grid_search(model, p, e, &eps, set_eps, &leads, set_lead);
     let l = model.effects[e].shape.sign_lead;
-    golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, &set_lead);
+    golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, set_lead);
 }
 
 fn set_quantum(m: &mut Model, e: usize, d: f64) {
