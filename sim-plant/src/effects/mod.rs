@@ -90,22 +90,27 @@ impl Trajectory<'_> {
     /// The recorded input and the window of it the trajectory covers: `raw_input` (the whole
     /// record) if it covers the trajectory at `raw_offset`, else `input` itself.
     pub fn recorded_input(&self) -> (&[f64], std::ops::Range<usize>) {
-        let n = self.len();
-        if self.raw_input.len() >= self.raw_offset + n {
-            (self.raw_input, self.raw_offset..self.raw_offset + n)
-        } else {
-            (&self.input[..n], 0..n)
-        }
+        self.whole_record(self.raw_input, self.input)
     }
 
     /// The acceleration over the whole record and the window of it the trajectory covers
     /// (`raw_acceleration` if it covers the trajectory at `raw_offset`, else `acceleration`).
     pub fn recorded_acceleration(&self) -> (&[f64], std::ops::Range<usize>) {
+        self.whole_record(self.raw_acceleration, self.acceleration)
+    }
+
+    /// `whole` and the trajectory's window in it if it covers the trajectory at `raw_offset`,
+    /// else `window` itself (whole range).
+    fn whole_record<'s>(
+        &self,
+        whole: &'s [f64],
+        window: &'s [f64],
+    ) -> (&'s [f64], std::ops::Range<usize>) {
         let n = self.len();
-        if self.raw_acceleration.len() >= self.raw_offset + n {
-            (self.raw_acceleration, self.raw_offset..self.raw_offset + n)
+        if whole.len() >= self.raw_offset + n {
+            (whole, self.raw_offset..self.raw_offset + n)
         } else {
-            (&self.acceleration[..n], 0..n)
+            (&window[..n], 0..n)
         }
     }
 
