@@ -31,15 +31,22 @@ pub fn noise_gain(fc: f64, fs: f64) -> f64 {
 
 /// RMS velocity of [`differentiate`] for unit white noise on the position (per sample).
 pub fn velocity_noise_gain(fc: f64, dt: f64) -> f64 {
+    derivative_noise_gains(fc, dt).0
+}
+
+/// RMS acceleration of [`differentiate`] for unit white noise on the position (per sample).
+pub fn acceleration_noise_gain(fc: f64, dt: f64) -> f64 {
+    derivative_noise_gains(fc, dt).1
+}
+
+/// (velocity, acceleration) RMS of [`differentiate`]'s impulse response.
+fn derivative_noise_gains(fc: f64, dt: f64) -> (f64, f64) {
     let n = ((40.0 / (fc * dt)) as usize).clamp(64, 1 << 16);
     let mut x = vec![0.0; n];
     x[n / 2] = 1.0;
-    differentiate(&x, dt, fc)
-        .velocity
-        .iter()
-        .map(|h| h * h)
-        .sum::<f64>()
-        .sqrt()
+    let d = differentiate(&x, dt, fc);
+    let rms = |h: &[f64]| h.iter().map(|h| h * h).sum::<f64>().sqrt();
+    (rms(&d.velocity), rms(&d.acceleration))
 }
 
 /// Smoothed position, velocity and acceleration.

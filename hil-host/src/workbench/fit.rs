@@ -132,6 +132,20 @@ pub fn batch_covariance(
 
 /// Ordinary least squares `y ≈ Σ θ_j·cols[j]` with batch-means covariance.
 pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
+    least_squares_compensated(cols, y, &[])
+}
+
+/// Bias-compensated least squares: as [`least_squares`], with `noise[j]` (the summed variance
+/// of column `j`'s own white measurement noise, `n·σ²`; missing entries are 0) taken off the
+/// Gram matrix's diagonal. A regressor measured with noise inflates `XᵀX` but not `Xᵀy`, which
+/// shrinks its coefficient (errors-in-variables); with the noise variance known the shrinkage
+/// is undone. Compensation is capped at half the column's energy, so a misjudged noise level
+/// cannot turn the Gram matrix indefinite.
+pub fn least_squares_compensated(
+    cols: &[Vec<f64>],
+    y: &[f64],
+    noise: &[f64],
+) -> Result<LsFit, FitError> {
     let n = y.len();
     let p = cols.len();
     if n < p + 2 {
@@ -143,7 +157,10 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Result<LsFit, FitError> {
     {
         return Err(FitError::NonFinite);
     }
-    let g = gram(cols);
+    let mut g = gram(cols);
+    for (j, &v) in noise.iter().enumerate().take(p) {
+        g[(j, j)] -= v.clamp(0.0, 0.5 * g[(j, j)]);
+    }
     let ginv = gram_inverse(&g);
     let xty = DVector::from_iterator(
         p,
@@ -270,6 +287,27 @@ mod tests {
         assert!(f.sigma(0) > 0.0 && f.sigma(0) < 0.01);
         let (_, p) = f.wald(&[0]);
         assert!(p < 1e-6);
+    }
+
+    /// A regressor measured with white noise of known variance: plain least squares shrinks
+    /// its coefficient by var(x)/(var(x) + σ²); the compensated fit does not.
+    #[test]
+    fn compensation_undoes_errors_in_variables_shrinkage() {
+        let n = 20_000;
+        // Deterministic pseudo-noise, uniform on ±0.5·√12·σ (variance σ²), uncorrelated with x.
+        let sigma: f64 = 0.5;
+        let noise = |i: usize| {
+            let u = super::super::stats::tests_support::unit_uniform(i as u64);
+            (u - 0.5) * 12f64.sqrt() * sigma
+        };
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.013).sin()).collect();
+        let y: Vec<f64> = x.iter().map(|x| 2.0 * x).collect();
+        let xm: Vec<f64> = x.iter().enumerate().map(|(i, x)| x + noise(i)).collect();
+        let ols = least_squares(std::slice::from_ref(&xm), &y).unwrap();
+        // var(sin) = ½: OLS gives 2·0.5/(0.5 + 0.25) = 1.33.
+        assert!((ols.theta[0] - 4.0 / 3.0).abs() < 0.03, "{}", ols.theta[0]);
+        let bc = least_squares_compensated(&[xm], &y, &[n as f64 * sigma * sigma]).unwrap();
+        assert!((bc.theta[0] - 2.0).abs() < 0.05, "{}", bc.theta[0]);
     }
 
     #[test]

@@ -79,6 +79,12 @@ pub struct Prepared {
     /// the position's quantisation step (the smallest nonzero position change in the record;
     /// about 0 for unquantised data). See [`static_friction`].
     pub stick_velocity: f64,
+    /// Variance of the encoder noise in [`Prepared::acceleration`]: the position's white noise
+    /// through the differentiator (see [`position_noise_variance`]). Least squares with a
+    /// noisy regressor is biased towards zero (errors-in-variables: at a 40 Hz cut-off a
+    /// 16-bit encoder's acceleration noise is a few percent of a joint's acceleration, and
+    /// the inertia comes out that much low); [`refit`] subtracts it from the Gram matrix.
+    pub acceleration_noise_var: f64,
 }
 
 impl Prepared {
@@ -90,6 +96,8 @@ impl Prepared {
         let r = e..rec.len() - e;
         let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
         let floor = super::metrics::noise_floor(&rec.input) * diff::noise_gain(fc, 1.0 / rec.dt);
+        let acceleration_noise_var = position_noise_variance(&rec.output)
+            * diff::acceleration_noise_gain(fc, rec.dt).powi(2);
         let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
             input: uf[r.clone()].to_vec(),
@@ -106,6 +114,7 @@ impl Prepared {
             input_instrument: Vec::new(),
             stick_velocity: 3.0 * quantisation_step(&rec.output) / 12f64.sqrt()
                 * diff::velocity_noise_gain(fc, rec.dt),
+            acceleration_noise_var,
         };
         p.input_instrument = instrument(&p);
         p
@@ -153,6 +162,25 @@ fn quantisation_step(x: &[f64]) -> f64 {
         .filter(|&d| d > 1e-12 * range)
         .fold(f64::INFINITY, f64::min)
         .min(range)
+}
+
+/// Variance of the white noise on a position record (encoder quantisation and sensor noise),
+/// from its fourth difference: white noise of variance σ² gives Δ⁴ a variance of 70σ², while a
+/// joint's motion, smooth at the sample rate, contributes `x⁗·dt⁴` — nothing. Estimated from
+/// the data rather than from the quantisation step (step²/12) because a dithered or noisy
+/// encoder is noisier than its step says, and an encoder held at rest is quieter.
+fn position_noise_variance(x: &[f64]) -> f64 {
+    if x.len() < 5 {
+        return 0.0;
+    }
+    let ss: f64 = x
+        .windows(5)
+        .map(|w| {
+            let d = w[4] - 4.0 * w[3] + 6.0 * w[2] - 4.0 * w[1] + w[0];
+            d * d
+        })
+        .sum();
+    ss / (70.0 * (x.len() - 4) as f64)
 }
 
 /// Motion-based reconstruction of the input: LS fit of the input on (a, v, sign v, 1).
@@ -404,7 +432,13 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
 /// Fit all free amplitudes by linear least squares; writes values and 1σ into the model.
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     let d = design(model, p);
-    let f = fit::least_squares(&d.cols, &d.y)?;
+    // Only the inertia column (the first) carries the differentiator's acceleration noise.
+    let rows = d.y.iter().filter(|y| **y != 0.0).count() as f64;
+    let mut noise = vec![0.0; d.cols.len()];
+    if d.free.first() == Some(&0) {
+        noise[0] = rows * p.acceleration_noise_var;
+    }
+    let f = fit::least_squares_compensated(&d.cols, &d.y, &noise)?;
     let mut params = model.params_mut();
     for (k, &i) in d.free.iter().enumerate() {
         params[i].value = f.theta[k];
@@ -560,5 +594,26 @@ pub fn output_error(model: &Model, p: &Prepared) -> Residual {
         position: p.position.clone(),
         input: p.input.clone(),
         noise_floor: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fourth-difference estimate sees the noise on a position, not the motion under it.
+    #[test]
+    fn position_noise_variance_ignores_smooth_motion() {
+        let sigma: f64 = 1e-4;
+        let x: Vec<f64> = (0..20_000)
+            .map(|i| {
+                let u = super::super::stats::tests_support::unit_uniform(i as u64);
+                (i as f64 * 2e-3).sin() * 2.0 + (u - 0.5) * 12f64.sqrt() * sigma
+            })
+            .collect();
+        let v = position_noise_variance(&x);
+        assert!((v / (sigma * sigma) - 1.0).abs() < 0.1, "{v:e}");
+        let smooth: Vec<f64> = (0..20_000).map(|i| (i as f64 * 2e-3).sin()).collect();
+        assert!(position_noise_variance(&smooth) < 1e-6 * sigma * sigma);
     }
 }

@@ -227,6 +227,20 @@ pub fn cross_correlation(x: &[f64], y: &[f64], max_lag: usize) -> Vec<(i64, f64)
         .collect()
 }
 
+/// Deterministic test noise.
+#[cfg(test)]
+pub(crate) mod tests_support {
+    /// Uniform on [0, 1) from a counter (SplitMix64): white, unlike a linear congruence of the
+    /// counter itself, whose successive values step by a constant.
+    pub fn unit_uniform(i: u64) -> f64 {
+        let mut z = i.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

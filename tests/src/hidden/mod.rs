@@ -480,6 +480,15 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
     }
     if std::env::var_os("HIDDEN_DEBUG").is_some() {
         eprintln!("truth: {plant:?}");
+        let twin: Vec<String> = m0
+            .params()
+            .iter()
+            .map(|p| format!("{} {:.6e}", p.name, p.value))
+            .collect();
+        eprintln!(
+            "twin fit: {} (est floor {floor_est:.4e}, val floor {floor_val:.4e})",
+            twin.join(", ")
+        );
     }
     let est = record(&plant, &d.est, noise, &format!("hidden seed {seed} est"));
     let val = record(&plant, &d.val, noise, &format!("hidden seed {seed} val"));
