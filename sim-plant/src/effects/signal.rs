@@ -205,6 +205,36 @@ pub fn biquad2(x: &[f64], num: [f64; 3], f0: f64, zeta: f64, fs: f64) -> Vec<f64
     y
 }
 
+/// The two free responses (`n` samples) of [`biquad2`]'s denominator `s² + 2ζω·s + ω²`
+/// (same discretisation): the output the filter adds, with no input, for each of its two
+/// initial states. Any start of the filter — a record that begins mid-transient, or a filter
+/// started on samples it should not trust — differs from another by a combination of these.
+/// Empty when `f0` is not below the Nyquist frequency (the filter is the identity then).
+pub fn free_response2(n: usize, f0: f64, zeta: f64, fs: f64) -> Vec<Vec<f64>> {
+    if !(f0 > 0.0 && f0 < fs / 2.0) {
+        return Vec::new();
+    }
+    let k = (std::f64::consts::PI * f0 / fs).tan();
+    let zeta = zeta.max(1e-3);
+    let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
+    let (a1, a2) = (
+        2.0 * (k * k - 1.0) * norm,
+        (1.0 - 2.0 * zeta * k + k * k) * norm,
+    );
+    [(1.0, 0.0), (0.0, 1.0)]
+        .iter()
+        .map(|&(mut y1, mut y2)| {
+            (0..n)
+                .map(|_| {
+                    let y = -a1 * y1 - a2 * y2;
+                    (y2, y1) = (y1, y);
+                    y
+                })
+                .collect()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
