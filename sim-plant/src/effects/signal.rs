@@ -254,6 +254,37 @@ mod tests {
     }
 
     #[test]
+    fn free_responses_span_any_restart_of_the_filter() {
+        // A filter started later (at its input's level there) differs from one that ran
+        // through by a combination of the two free responses.
+        let fs = 1000.0;
+        let x: Vec<f64> = (0..3000)
+            .map(|i| (i as f64 * 0.013).sin() + 0.3 * (i as f64 * 0.21).cos())
+            .collect();
+        let (num, f0, zeta, m) = ([0.0, 0.3, 2.0], 7.0, 0.04, 500);
+        let full = biquad2(&x, num, f0, zeta, fs);
+        let late = biquad2(&x[m..], num, f0, zeta, fs);
+        let d: Vec<f64> = full[m..].iter().zip(&late).map(|(a, b)| a - b).collect();
+        let f = free_response2(d.len(), f0, zeta, fs);
+        // 2×2 normal equations.
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let (g11, g12, g22) = (dot(&f[0], &f[0]), dot(&f[0], &f[1]), dot(&f[1], &f[1]));
+        let (b1, b2) = (dot(&f[0], &d), dot(&f[1], &d));
+        let det = g11 * g22 - g12 * g12;
+        let (c1, c2) = ((g22 * b1 - g12 * b2) / det, (g11 * b2 - g12 * b1) / det);
+        let worst = d
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (v - c1 * f[0][k] - c2 * f[1][k]).abs())
+            .fold(0.0, f64::max);
+        let scale = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(
+            scale > 1e-3 && worst < 1e-9 * scale.max(1.0),
+            "{worst} of {scale}"
+        );
+    }
+
+    #[test]
     fn biquad2_with_a_pure_s2_numerator_is_the_highpass() {
         let x: Vec<f64> = (0..500).map(|i| ((i * 7919) % 101) as f64 - 50.0).collect();
         let a = biquad2(&x, [1.0, 0.0, 0.0], 30.0, 0.2, 1000.0);
