@@ -296,11 +296,24 @@ fn ls_free(kind: Option<EffectKind>, free: bool) -> bool {
     free && kind != Some(EffectKind::Delay)
 }
 
+/// The record's initial-state columns of a model's effects with internal dynamics (see
+/// `sim_plant::effects::initial_state`): nuisance regressors of this record, fitted with the
+/// free amplitudes ([`design`]) and again on any record the model predicts ([`predict`]).
+fn initial_state_columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
+    let t = p.trajectory();
+    model
+        .effects
+        .iter()
+        .flat_map(|e| sim_plant::effects::initial_state(e.kind, &t, &e.shape))
+        .collect()
+}
+
 /// The free-parameter regression: columns of free parameters and the input minus the
 /// contribution of fixed ones.
 #[derive(Debug, Clone)]
 pub struct Design {
-    /// Free columns.
+    /// Free columns, then the record's initial-state columns (`cols.len() − free.len()` of
+    /// them; see [`initial_state_columns`]).
     pub cols: Vec<Vec<f64>>,
     /// Target.
     pub y: Vec<f64>,
@@ -329,6 +342,7 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
             }
         }
     }
+    cols.extend(initial_state_columns(model, p));
     if let Some(stuck) = stuck {
         for (k, _) in stuck.iter().enumerate().filter(|(_, &s)| s) {
             y[k] = 0.0;
@@ -447,16 +461,29 @@ pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     Ok(f)
 }
 
-/// Equation-error prediction of the input.
+/// Equation-error prediction of the input. The effects' initial state on this record (see
+/// [`initial_state_columns`]) is fitted to what the parameters leave, as a simulation's
+/// initial state is estimated on the record it is compared with.
 pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
     let cols = columns(model, p);
-    if let Some(s) = static_friction(model, p, &cols) {
-        return s.predict(p);
-    }
-    let mut u = vec![0.0; p.len()];
-    for (c, par) in cols.iter().zip(model.params()) {
-        for (uu, x) in u.iter_mut().zip(c) {
-            *uu += par.value * x;
+    let mut u = if let Some(s) = static_friction(model, p, &cols) {
+        s.predict(p)
+    } else {
+        let mut u = vec![0.0; p.len()];
+        for (c, par) in cols.iter().zip(model.params()) {
+            for (uu, x) in u.iter_mut().zip(c) {
+                *uu += par.value * x;
+            }
+        }
+        u
+    };
+    let x0 = initial_state_columns(model, p);
+    if !x0.is_empty() {
+        let left: Vec<f64> = p.input.iter().zip(&u).map(|(y, v)| y - v).collect();
+        if let Ok(f) = fit::least_squares(&x0, &left) {
+            for (uu, (l, r)) in u.iter_mut().zip(left.iter().zip(&f.residual)) {
+                *uu += l - r;
+            }
         }
     }
     u

@@ -21,7 +21,7 @@
 //! §7.10/7.11: ringing at the transmission mode after steps, motor and load velocities differ
 //! at that mode; a soft zone makes that frequency depend on load.
 
-use super::signal::{biquad2, highpass2, log_space};
+use super::signal::{biquad2, free_response2, highpass2, log_space};
 use super::{EffectLaws, Shape, Trajectory};
 
 /// Stiffness used when backlash is present without a compliance effect (N·m/rad).
@@ -145,6 +145,36 @@ fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
         .iter()
         .map(|v| shape.compliance_near_inertia * v)
         .collect()
+}
+
+/// Columns spanning the column's dependence on the state its filter starts from: the free
+/// responses of the mode it filters through, as the column carries them. The load's position
+/// and velocity relative to the motor when the record (or its trusted window) begins are not
+/// measured, and the mode rings them out for 1/(ζω) — seconds at the light damping of a
+/// transmission, and longer for the motion form's locked-motor mode (ζ₂ = ζ/√(1 + J2/J1)).
+/// Filtered from the record's start, the motion form also rings out whatever error the
+/// differentiator's edge (odd reflection) puts into the first samples' acceleration; that
+/// ringing, not the record's dynamics, then dominated the refit (the true mode fitted worse
+/// than a wrong one, and the amplitude came out a fraction of J2/J1). Fitted per record as
+/// nuisance regressors (`hil_host::workbench::residual`), as a simulation's initial state is.
+pub fn initial_state(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
+    let n = traj.len();
+    if n < 8 || traj.dt <= 0.0 {
+        return Vec::new();
+    }
+    // The column's filter state where the trajectory's window starts summarises everything
+    // before it (the record's unseen past, and for the motion form the edge samples). The
+    // command form is low-passed after its high-pass; a damped sinusoid comes out of that
+    // zero-phase low-pass as itself times a complex gain, so the unfiltered free responses
+    // span the same columns past the filter's settling (the trajectory starts after the
+    // differentiator's edge samples).
+    let (f, zeta) = if shape.compliance_near_inertia > 0.0 {
+        let s = (1.0 + shape.compliance_ratio.max(0.0)).sqrt();
+        (shape.compliance_frequency / s, shape.compliance_damping / s)
+    } else {
+        (shape.compliance_frequency, shape.compliance_damping)
+    };
+    free_response2(n, f, zeta, 1.0 / traj.dt)
 }
 
 /// Lowest mode frequency searched (Hz): below it a transmission mode is inside the motion band

@@ -398,6 +398,17 @@ pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Sha
     }
 }
 
+/// Record-specific columns for the unknown state an effect's internal dynamics start a record
+/// in (the compliance mode's free responses, see `compliance::initial_state`); empty for
+/// memoryless effects. They are nuisance regressors fitted on each record, never model
+/// parameters.
+pub fn initial_state(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
+    match kind {
+        EffectKind::Compliance => compliance::initial_state(traj, shape),
+        _ => Vec::new(),
+    }
+}
+
 /// Whether the record resolves `shape` of `kind`: false when a shape search ends at the edge
 /// of what the record can identify — a compliance mode at or above the top of its grid (above
 /// the residual's bandwidth only `J2/(J1·ω²)` is identifiable, not the mode, and a stiff

@@ -205,6 +205,36 @@ pub fn biquad2(x: &[f64], num: [f64; 3], f0: f64, zeta: f64, fs: f64) -> Vec<f64
     y
 }
 
+/// The two free responses (`n` samples) of [`biquad2`]'s denominator `s² + 2ζω·s + ω²`
+/// (same discretisation): the output the filter adds, with no input, for each of its two
+/// initial states. Any start of the filter — a record that begins mid-transient, or a filter
+/// started on samples it should not trust — differs from another by a combination of these.
+/// Empty when `f0` is not below the Nyquist frequency (the filter is the identity then).
+pub fn free_response2(n: usize, f0: f64, zeta: f64, fs: f64) -> Vec<Vec<f64>> {
+    if !(f0 > 0.0 && f0 < fs / 2.0) {
+        return Vec::new();
+    }
+    let k = (std::f64::consts::PI * f0 / fs).tan();
+    let zeta = zeta.max(1e-3);
+    let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
+    let (a1, a2) = (
+        2.0 * (k * k - 1.0) * norm,
+        (1.0 - 2.0 * zeta * k + k * k) * norm,
+    );
+    [(1.0, 0.0), (0.0, 1.0)]
+        .iter()
+        .map(|&(mut y1, mut y2)| {
+            (0..n)
+                .map(|_| {
+                    let y = -a1 * y1 - a2 * y2;
+                    (y2, y1) = (y1, y);
+                    y
+                })
+                .collect()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,6 +251,37 @@ mod tests {
         assert_eq!(m, vec![1.5, 2.0, 3.0, 4.0, 4.5]);
         let g = log_space(1.0, 100.0, 3);
         assert!((g[1] - 10.0).abs() < 1e-12 && (g[2] - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn free_responses_span_any_restart_of_the_filter() {
+        // A filter started later (at its input's level there) differs from one that ran
+        // through by a combination of the two free responses.
+        let fs = 1000.0;
+        let x: Vec<f64> = (0..3000)
+            .map(|i| (i as f64 * 0.013).sin() + 0.3 * (i as f64 * 0.21).cos())
+            .collect();
+        let (num, f0, zeta, m) = ([0.0, 0.3, 2.0], 7.0, 0.04, 500);
+        let full = biquad2(&x, num, f0, zeta, fs);
+        let late = biquad2(&x[m..], num, f0, zeta, fs);
+        let d: Vec<f64> = full[m..].iter().zip(&late).map(|(a, b)| a - b).collect();
+        let f = free_response2(d.len(), f0, zeta, fs);
+        // 2×2 normal equations.
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let (g11, g12, g22) = (dot(&f[0], &f[0]), dot(&f[0], &f[1]), dot(&f[1], &f[1]));
+        let (b1, b2) = (dot(&f[0], &d), dot(&f[1], &d));
+        let det = g11 * g22 - g12 * g12;
+        let (c1, c2) = ((g22 * b1 - g12 * b2) / det, (g11 * b2 - g12 * b1) / det);
+        let worst = d
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (v - c1 * f[0][k] - c2 * f[1][k]).abs())
+            .fold(0.0, f64::max);
+        let scale = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(
+            scale > 1e-3 && worst < 1e-9 * scale.max(1.0),
+            "{worst} of {scale}"
+        );
     }
 
     #[test]
