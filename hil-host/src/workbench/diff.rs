@@ -42,6 +42,17 @@ pub fn velocity_noise_gain(fc: f64, dt: f64) -> f64 {
         .sqrt()
 }
 
+/// Peak |velocity| of [`differentiate`] for a unit step of the position: what one encoder
+/// count flickering on a joint at rest shows as speed.
+pub fn step_velocity_peak(fc: f64, dt: f64) -> f64 {
+    let n = ((40.0 / (fc * dt)) as usize).clamp(64, 1 << 16);
+    let x: Vec<f64> = (0..n).map(|i| if i < n / 2 { 0.0 } else { 1.0 }).collect();
+    differentiate(&x, dt, fc)
+        .velocity
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
 /// Smoothed position, velocity and acceleration.
 #[derive(Debug, Clone)]
 pub struct Derivatives {
