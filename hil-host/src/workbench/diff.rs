@@ -122,6 +122,18 @@ mod tests {
         }
     }
 
+    /// One count of a position step shows as a velocity pulse of about 2.2·fc counts/s at a
+    /// 40 Hz cut-off (the rest band of static friction), several times 3σ of white
+    /// quantisation noise.
+    #[test]
+    fn one_step_velocity_peak_exceeds_white_noise_band() {
+        let (fc, dt) = (40.0, 1e-3);
+        let peak = step_velocity_peak(fc, dt);
+        let white = 3.0 / 12f64.sqrt() * velocity_noise_gain(fc, dt);
+        assert!(peak > 2.0 * white, "peak {peak}, 3σ white {white}");
+        assert!(peak > 1.5 * fc && peak < 4.0 * fc, "peak {peak}");
+    }
+
     #[test]
     fn filter_removes_high_frequency() {
         let dt = 1e-3;
