@@ -49,6 +49,17 @@ fn derivative_noise_gains(fc: f64, dt: f64) -> (f64, f64) {
     (rms(&d.velocity), rms(&d.acceleration))
 }
 
+/// Peak |velocity| of [`differentiate`] for a unit step of the position: what one encoder
+/// count flickering on a joint at rest shows as speed.
+pub fn step_velocity_peak(fc: f64, dt: f64) -> f64 {
+    let n = ((40.0 / (fc * dt)) as usize).clamp(64, 1 << 16);
+    let x: Vec<f64> = (0..n).map(|i| if i < n / 2 { 0.0 } else { 1.0 }).collect();
+    differentiate(&x, dt, fc)
+        .velocity
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
 /// Smoothed position, velocity and acceleration.
 #[derive(Debug, Clone)]
 pub struct Derivatives {
@@ -116,6 +127,18 @@ mod tests {
                 "a at {i}"
             );
         }
+    }
+
+    /// One count of a position step shows as a velocity pulse of about 2.2·fc counts/s at a
+    /// 40 Hz cut-off (the rest band of static friction), several times 3σ of white
+    /// quantisation noise.
+    #[test]
+    fn one_step_velocity_peak_exceeds_white_noise_band() {
+        let (fc, dt) = (40.0, 1e-3);
+        let peak = step_velocity_peak(fc, dt);
+        let white = 3.0 / 12f64.sqrt() * velocity_noise_gain(fc, dt);
+        assert!(peak > 2.0 * white, "peak {peak}, 3σ white {white}");
+        assert!(peak > 1.5 * fc && peak < 4.0 * fc, "peak {peak}");
     }
 
     #[test]

@@ -75,9 +75,13 @@ pub struct Prepared {
     pub cutoff_hz: f64,
     /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
     pub input_instrument: Vec<f64>,
-    /// Speed below which the joint may be stuck: 3σ of the differentiator's velocity noise for
-    /// the position's quantisation step (the smallest nonzero position change in the record;
-    /// about 0 for unquantised data). See [`static_friction`].
+    /// Speed below which the joint may be stuck: the peak speed the differentiator shows for
+    /// one step of the position's quantisation (the smallest nonzero position change in the
+    /// record; about 0 for unquantised data). A joint at rest does not show white
+    /// quantisation noise but whole counts flickering as its spring and bristles take up the
+    /// holding torque: each flicker is a one-count step, and 3σ of white quantisation noise
+    /// (about 40 % of this) left most of a held phase outside the band, where the clamp to the
+    /// breakaway level then mispredicted it. See [`static_friction`].
     pub stick_velocity: f64,
     /// Variance of the encoder noise in [`Prepared::acceleration`]: the position's white noise
     /// through the differentiator (see [`position_noise_variance`]). Least squares with a
@@ -112,8 +116,7 @@ impl Prepared {
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
-            stick_velocity: 3.0 * quantisation_step(&rec.output) / 12f64.sqrt()
-                * diff::velocity_noise_gain(fc, rec.dt),
+            stick_velocity: quantisation_step(&rec.output) * diff::step_velocity_peak(fc, rec.dt),
             acceleration_noise_var,
         };
         p.input_instrument = instrument(&p);

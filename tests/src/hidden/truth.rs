@@ -80,8 +80,9 @@ impl Plant {
         }
     }
 
-    /// State derivative for state [x1, v1, x2, v2, z] under applied torque `tau`.
-    fn deriv(&self, s: &[f64; 5], tau: f64) -> [f64; 5] {
+    /// State derivative for state [x1, v1, x2, v2, z] under applied torque `tau`, `age` after
+    /// the start of the RK4 sub-step (see the bristle note below).
+    fn deriv(&self, s: &[f64; 5], tau: f64, age: f64) -> [f64; 5] {
         let [x1, v1, x2, v2, z] = *s;
         let d = x1 - x2;
         let half = 0.5 * self.backlash;
@@ -95,10 +96,21 @@ impl Plant {
         let in_contact = defl != 0.0 || self.backlash == 0.0;
         let spring = self.k * defl + if in_contact { self.c * (v1 - v2) } else { 0.0 };
         // LuGre friction on the load. The bristle state z is advanced exactly (see
-        // `advance_bristle`) between RK4 sub-steps; here it is frozen and only its rate enters
-        // the damping term σ1·ż.
+        // `advance_bristle`) between RK4 sub-steps; within one it is not an RK state, so at a
+        // stage `age` into the sub-step it is relaxed exactly from its start value toward the
+        // steady state of the stage's velocity. Using the start value itself (the earlier
+        // form) put the bristle off its slow manifold at every later stage: the damping σ1·ż
+        // (σ1 is large — critically damped bristles) then added a spurious force
+        // σ1·(h/2)·a·|v|·g'(|v|)/g(|v|) across the Stribeck transition, an O(h) integration
+        // error several times the physical bristle transient σ1·g'·a/σ0.
         let fz = if self.fc > 0.0 || self.fs > 0.0 {
             let (s0, s1, lambda) = self.lugre(v2);
+            let z = if lambda * age > 1e-12 {
+                let zss = v2 / lambda;
+                zss + (z - zss) * (-lambda * age).exp()
+            } else {
+                z + v2 * age
+            };
             let dz = v2 - lambda * z;
             s0 * z + s1 * dz
         } else {
@@ -239,13 +251,13 @@ pub fn simulate(
                 applied(t0 + 0.5 * h) + w,
                 applied(t0 + h) + w,
             );
-            let k1 = p.deriv(&s, ua);
+            let k1 = p.deriv(&s, ua, 0.0);
             let s2 = add(&s, &k1, 0.5 * h);
-            let k2 = p.deriv(&s2, ub);
+            let k2 = p.deriv(&s2, ub, 0.5 * h);
             let s3 = add(&s, &k2, 0.5 * h);
-            let k3 = p.deriv(&s3, ub);
+            let k3 = p.deriv(&s3, ub, 0.5 * h);
             let s4 = add(&s, &k3, h);
-            let k4 = p.deriv(&s4, uc);
+            let k4 = p.deriv(&s4, uc, h);
             for i in 0..4 {
                 s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
