@@ -149,3 +149,25 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     }
     out
 }
+
+/// Around the best grid shape: widths within ±40 % and load time constants within ×2.5 (or,
+/// from "no decay", the long ones above the grid's 2.5 s).
+pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+    let (b0, t0) = (best.backlash_width, best.backlash_load_time);
+    let taus: Vec<f64> = if t0 > 0.0 {
+        (-4..=4).map(|k| t0 * 1.25f64.powi(k)).collect()
+    } else {
+        vec![4.0, 6.3, 10.0, 0.0]
+    };
+    let mut out = Vec::new();
+    for &tau in &taus {
+        for k in -3..=3 {
+            out.push(Shape {
+                backlash_width: b0 * 1.12f64.powi(k),
+                backlash_load_time: tau,
+                ..Shape::default()
+            });
+        }
+    }
+    out
+}
