@@ -127,18 +127,74 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     vec![col]
 }
 
-/// Load time constants of the shape grid (s; 0 = no decay).
+/// Load time constants of the shape grid (s; 0 = no decay), besides the ones scaled on the
+/// record's own rigid time constant (see [`shape_grid`]).
 pub const LOAD_TIMES: [f64; 4] = [0.1, 0.5, 2.5, 0.0];
 
-/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`].
+/// Fractions of the rigid time constant J/b in the shape grid: the load's own J2/b_load is
+/// that fraction J2/J when all the viscous friction is on the load side.
+pub const LOAD_FRACTIONS: [f64; 4] = [0.3, 0.5, 0.7, 0.9];
+
+/// J/b of the rigid fit `input ≈ J·a + b·v + c·sign v + d` on the trajectory (None if either
+/// is not positive): the scale of the load's viscous time constant.
+pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
+    let n = traj.len();
+    let mut g = [[0.0f64; 5]; 4];
+    for i in 0..n {
+        let (v, a) = (traj.velocity[i], traj.acceleration[i]);
+        let s = if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let z = [a, v, s, 1.0, traj.input[i]];
+        for r in 0..4 {
+            for c in 0..5 {
+                g[r][c] += z[r] * z[c];
+            }
+        }
+    }
+    // Gaussian elimination with partial pivoting on the 4×4 normal equations.
+    for i in 0..4 {
+        let p = (i..4).max_by(|&x, &y| g[x][i].abs().total_cmp(&g[y][i].abs()))?;
+        g.swap(i, p);
+        if g[i][i].abs() < 1e-300 {
+            return None;
+        }
+        for r in i + 1..4 {
+            let f = g[r][i] / g[i][i];
+            for c in i..5 {
+                g[r][c] -= f * g[i][c];
+            }
+        }
+    }
+    let mut x = [0.0; 4];
+    for i in (0..4).rev() {
+        let s: f64 = (i + 1..4).map(|c| g[i][c] * x[c]).sum();
+        x[i] = (g[i][4] - s) / g[i][i];
+    }
+    let (j, b) = (x[0], x[1]);
+    (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
+}
+
+/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`] and
+/// [`LOAD_FRACTIONS`] of the record's [`rigid_time_constant`]. The fit is sharp in τ (it sets
+/// the load's deceleration while it crosses the gap, against a relative deceleration of the
+/// motor that is often a small fraction of it), so the generic ×5 steps alone miss it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &q| (l.min(q), h.max(q)));
     let span = positive_or(hi - lo, 1.0);
+    let mut taus = LOAD_TIMES.to_vec();
+    if let Some(t) = rigid_time_constant(traj) {
+        taus.extend(LOAD_FRACTIONS.iter().map(|f| f * t));
+    }
     let mut out = Vec::new();
-    for tau in LOAD_TIMES {
+    for tau in taus {
         for b in log_space(3e-4 * span, 0.1 * span, 7) {
             out.push(Shape {
                 backlash_width: b,
@@ -150,20 +206,20 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     out
 }
 
-/// Around the best grid shape: widths within ±40 % and load time constants within ×2.5 (or,
+/// Around the best grid shape: widths within ±60 % and load time constants within ±50 % (or,
 /// from "no decay", the long ones above the grid's 2.5 s).
 pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     let (b0, t0) = (best.backlash_width, best.backlash_load_time);
     let taus: Vec<f64> = if t0 > 0.0 {
-        (-4..=4).map(|k| t0 * 1.25f64.powi(k)).collect()
+        (-4..=4).map(|k| t0 * 1.2f64.powi(k)).collect()
     } else {
         vec![4.0, 6.3, 10.0, 0.0]
     };
     let mut out = Vec::new();
     for &tau in &taus {
-        for k in -3..=3 {
+        for k in -6..=6 {
             out.push(Shape {
-                backlash_width: b0 * 1.12f64.powi(k),
+                backlash_width: b0 * 1.08f64.powi(k),
                 backlash_load_time: tau,
                 ..Shape::default()
             });
