@@ -150,9 +150,9 @@ pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
             0.0
         };
         let z = [a, v, s, 1.0, traj.input[i]];
-        for r in 0..4 {
-            for c in 0..5 {
-                g[r][c] += z[r] * z[c];
+        for (row, zr) in g.iter_mut().zip(z) {
+            for (x, zc) in row.iter_mut().zip(z) {
+                *x += zr * zc;
             }
         }
     }
@@ -163,10 +163,11 @@ pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
         if g[i][i].abs() < 1e-300 {
             return None;
         }
-        for r in i + 1..4 {
-            let f = g[r][i] / g[i][i];
-            for c in i..5 {
-                g[r][c] -= f * g[i][c];
+        let pivot = g[i];
+        for row in g.iter_mut().skip(i + 1) {
+            let f = row[i] / pivot[i];
+            for (x, p) in row.iter_mut().zip(pivot).skip(i) {
+                *x -= f * p;
             }
         }
     }
@@ -226,4 +227,46 @@ pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shape grid's time-constant scale is J/b of the rigid fit, whatever the Coulomb
+    /// level and offset riding on the input.
+    #[test]
+    fn rigid_time_constant_is_inertia_over_damping() {
+        let n = 2000;
+        let dt = 1e-3;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let q: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + 0.3 * (11.0 * t).sin()).collect();
+        let v: Vec<f64> = t
+            .iter()
+            .map(|t| 3.0 * (3.0 * t).cos() + 3.3 * (11.0 * t).cos())
+            .collect();
+        let a: Vec<f64> = t
+            .iter()
+            .map(|t| -9.0 * (3.0 * t).sin() - 36.3 * (11.0 * t).sin())
+            .collect();
+        let u: Vec<f64> = v
+            .iter()
+            .zip(&a)
+            .map(|(v, a)| 0.02 * a + 0.05 * v + 0.1 * v.signum() - 0.03)
+            .collect();
+        let traj = Trajectory {
+            dt,
+            input: &u,
+            position: &q,
+            velocity: &v,
+            acceleration: &a,
+            raw_input: &u,
+            raw_offset: 0,
+            raw_acceleration: &[],
+            lowpass_hz: 0.0,
+        };
+        let tau = rigid_time_constant(&traj).expect("J and b positive");
+        assert!((tau - 0.4).abs() < 1e-9, "J/b = {tau}");
+        assert_eq!(shape_grid(&traj).len(), 7 * (LOAD_TIMES.len() + LOAD_FRACTIONS.len()));
+    }
 }
