@@ -127,18 +127,75 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     vec![col]
 }
 
-/// Load time constants of the shape grid (s; 0 = no decay).
+/// Load time constants of the shape grid (s; 0 = no decay), besides the ones scaled on the
+/// record's own rigid time constant (see [`shape_grid`]).
 pub const LOAD_TIMES: [f64; 4] = [0.1, 0.5, 2.5, 0.0];
 
-/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`].
+/// Fractions of the rigid time constant J/b in the shape grid: the load's own J2/b_load is
+/// that fraction J2/J when all the viscous friction is on the load side.
+pub const LOAD_FRACTIONS: [f64; 4] = [0.3, 0.5, 0.7, 0.9];
+
+/// J/b of the rigid fit `input ≈ J·a + b·v + c·sign v + d` on the trajectory (None if either
+/// is not positive): the scale of the load's viscous time constant.
+pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
+    let n = traj.len();
+    let mut g = [[0.0f64; 5]; 4];
+    for i in 0..n {
+        let (v, a) = (traj.velocity[i], traj.acceleration[i]);
+        let s = if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let z = [a, v, s, 1.0, traj.input[i]];
+        for (row, zr) in g.iter_mut().zip(z) {
+            for (x, zc) in row.iter_mut().zip(z) {
+                *x += zr * zc;
+            }
+        }
+    }
+    // Gaussian elimination with partial pivoting on the 4×4 normal equations.
+    for i in 0..4 {
+        let p = (i..4).max_by(|&x, &y| g[x][i].abs().total_cmp(&g[y][i].abs()))?;
+        g.swap(i, p);
+        if g[i][i].abs() < 1e-300 {
+            return None;
+        }
+        let pivot = g[i];
+        for row in g.iter_mut().skip(i + 1) {
+            let f = row[i] / pivot[i];
+            for (x, p) in row.iter_mut().zip(pivot).skip(i) {
+                *x -= f * p;
+            }
+        }
+    }
+    let mut x = [0.0; 4];
+    for i in (0..4).rev() {
+        let s: f64 = (i + 1..4).map(|c| g[i][c] * x[c]).sum();
+        x[i] = (g[i][4] - s) / g[i][i];
+    }
+    let (j, b) = (x[0], x[1]);
+    (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
+}
+
+/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`] and
+/// [`LOAD_FRACTIONS`] of the record's [`rigid_time_constant`]. The fit is sharp in τ (it sets
+/// the load's deceleration while it crosses the gap, against a relative deceleration of the
+/// motor that is often a small fraction of it), so the generic ×5 steps alone miss it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &q| (l.min(q), h.max(q)));
     let span = positive_or(hi - lo, 1.0);
+    let mut taus = LOAD_TIMES.to_vec();
+    if let Some(t) = rigid_time_constant(traj) {
+        taus.extend(LOAD_FRACTIONS.iter().map(|f| f * t));
+    }
     let mut out = Vec::new();
-    for tau in LOAD_TIMES {
+    for tau in taus {
         for b in log_space(3e-4 * span, 0.1 * span, 7) {
             out.push(Shape {
                 backlash_width: b,
@@ -148,4 +205,69 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
         }
     }
     out
+}
+
+/// Around the best grid shape: widths within ±60 % (steps of 8 %; the coarse grid's step is
+/// ×2.6 and the fit's minimum in the width only about ±15 % wide) and load time constants
+/// within a factor 2 (steps of 20 %; from "no decay": the long ones above the grid's 2.5 s).
+pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+    let (b0, t0) = (best.backlash_width, best.backlash_load_time);
+    let taus: Vec<f64> = if t0 > 0.0 {
+        (-4..=4).map(|k| t0 * 1.2f64.powi(k)).collect()
+    } else {
+        vec![4.0, 6.3, 10.0, 0.0]
+    };
+    let mut out = Vec::new();
+    for &tau in &taus {
+        for k in -6..=6 {
+            out.push(Shape {
+                backlash_width: b0 * 1.08f64.powi(k),
+                backlash_load_time: tau,
+                ..Shape::default()
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shape grid's time-constant scale is J/b of the rigid fit, whatever the Coulomb
+    /// level and offset riding on the input.
+    #[test]
+    fn rigid_time_constant_is_inertia_over_damping() {
+        let n = 2000;
+        let dt = 1e-3;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let q: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + 0.3 * (11.0 * t).sin()).collect();
+        let v: Vec<f64> = t
+            .iter()
+            .map(|t| 3.0 * (3.0 * t).cos() + 3.3 * (11.0 * t).cos())
+            .collect();
+        let a: Vec<f64> = t
+            .iter()
+            .map(|t| -9.0 * (3.0 * t).sin() - 36.3 * (11.0 * t).sin())
+            .collect();
+        let u: Vec<f64> = v
+            .iter()
+            .zip(&a)
+            .map(|(v, a)| 0.02 * a + 0.05 * v + 0.1 * v.signum() - 0.03)
+            .collect();
+        let traj = Trajectory {
+            dt,
+            input: &u,
+            position: &q,
+            velocity: &v,
+            acceleration: &a,
+            raw_input: &u,
+            raw_offset: 0,
+            raw_acceleration: &[],
+            lowpass_hz: 0.0,
+        };
+        let tau = rigid_time_constant(&traj).expect("J and b positive");
+        assert!((tau - 0.4).abs() < 1e-9, "J/b = {tau}");
+        assert_eq!(shape_grid(&traj).len(), 7 * (LOAD_TIMES.len() + LOAD_FRACTIONS.len()));
+    }
 }

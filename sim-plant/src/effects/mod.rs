@@ -394,6 +394,7 @@ pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Sha
         EffectKind::Ripple => ripple::refine_grid(traj, best),
         EffectKind::Compliance => compliance::refine_grid(traj, best),
         EffectKind::Quantization => quantization::refine_grid(traj, best),
+        EffectKind::Backlash => backlash::refine_grid(traj, best),
         _ => Vec::new(),
     }
 }
