@@ -74,21 +74,39 @@ fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
     ]))
     .unwrap();
     let m = Model::load(&fitted).unwrap();
-    let fc = m
+    let coulomb = &m
         .effects
         .iter()
         .find(|e| e.kind == EffectKind::Coulomb)
         .unwrap()
-        .params[0]
-        .value;
+        .params[0];
+    let (fc, sigma) = (coulomb.value, coulomb.sigma.unwrap());
+    // Within 5 % of the range or its own 2σ, whichever is wider: the plant also has stiction
+    // (breakaway 1.8× Coulomb), which lifts a Coulomb-only fit by an amount that depends on
+    // how much slow sliding the rest band holds — the fit's uncertainty covers that.
+    let tol = |x: f64| (0.05 * x).max(2.0 * sigma);
     assert!(
-        fc > 0.95 * lo && fc < 1.05 * hi,
-        "fitted Coulomb {fc} N·m (motor) outside the preset's [{lo}, {hi}]"
+        fc > lo - tol(lo) && fc < hi + tol(hi),
+        "fitted Coulomb {fc} ± {sigma} N·m (motor) outside the preset's [{lo}, {hi}]"
     );
-    // The rigid inertia, motor-referred: I1 + (I_mid + I2)/N², within 10 %.
+    // The rigid inertia, motor-referred: I1 + (I_mid + I2)/N², within 5 % (the quantised
+    // encoder's noise in the acceleration is compensated, see `fit::least_squares_compensated`).
     let j = truth.motor.inertia.value
         + (truth.plant.middle_inertia.value + truth.plant.output_inertia.value) / (n * n);
     let rel = (m.inertia.value - j).abs() / j;
-    assert!(rel < 0.1, "inertia {} vs {j} ({rel})", m.inertia.value);
+    assert!(rel < 0.05, "inertia {} vs {j} ({rel})", m.inertia.value);
+
+    // `--auto`: the cable's compliant stages are the largest thing a rigid friction model
+    // leaves; at the grid shape a backlash explains about as much, but once refitted the
+    // transmission mode explains half the residual and wins `choose`.
+    let mut auto_model = Model::baseline();
+    let run = refine::auto(&mut auto_model, &p, None, &Options::default(), 6).unwrap();
+    let added: Vec<_> = run.steps.iter().filter_map(|s| s.added.clone()).collect();
+    assert!(
+        auto_model.has(EffectKind::Compliance) && !auto_model.has(EffectKind::Backlash),
+        "--auto added {added:?}"
+    );
+    let fit = run.steps.last().unwrap().score.fit_percent;
+    assert!(fit > 90.0, "--auto ends at {fit} % ({added:?})");
     let _ = std::fs::remove_dir_all(&dir);
 }

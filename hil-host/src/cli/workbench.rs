@@ -250,7 +250,10 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
 fn auto_text(run: &AutoRun) -> String {
     let label = |st: &AutoStep| match (&st.added, &st.replaced) {
         (Some(a), Some(r)) => format!("{a} (for {r})"),
-        (Some(a), None) => a.clone(),
+        (Some(a), None) => match &st.chosen_over {
+            Some(o) => format!("{a} (over {o})"),
+            None => a.clone(),
+        },
         (None, Some(r)) => format!("(remove {r})"),
         _ => "(start)".into(),
     };

@@ -855,7 +855,12 @@ pub struct AutoStep {
     pub score: Score,
     /// Score on validation data.
     pub validation: Option<Score>,
-    /// Holm p of the added effect.
+    /// The verdict this step's effect displaced: `choose` took another candidate because its
+    /// full refit had the lower BIC.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chosen_over: Option<String>,
+    /// Holm p of the added effect at its grid shape (none when it was not significant there
+    /// and won on its refitted BIC, see [`AutoStep::chosen_over`]).
     pub p_value: Option<f64>,
     /// Diagnosis text at this step.
     pub verdict: String,
@@ -885,6 +890,7 @@ pub fn auto(
         replaced: None,
         score: score(model, p),
         validation: validation.map(|v| score(model, v)),
+        chosen_over: None,
         p_value: None,
         verdict: "start".into(),
     }];
@@ -912,6 +918,7 @@ pub fn auto(
                         replaced: None,
                         score: score(model, p),
                         validation: validation.map(|v| score(model, v)),
+                        chosen_over: None,
                         p_value: None,
                         verdict: text,
                     });
@@ -935,6 +942,7 @@ pub fn auto(
                     replaced: Some(replaced),
                     score: sc,
                     validation: val,
+                    chosen_over: None,
                     p_value: None,
                     verdict,
                 });
@@ -957,7 +965,8 @@ pub fn auto(
             replaced: None,
             score: score(model, p),
             validation: validation.map(|v| score(model, v)),
-            p_value: Some(c.p_value),
+            chosen_over: (c.effect != name).then(|| name.clone()),
+            p_value: c.significant.then_some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
     }
@@ -984,6 +993,10 @@ fn spent_params(kind: EffectKind, df: usize) -> usize {
     }
 }
 
+/// Fraction of the verdict's error reduction at which a candidate that is not significant at
+/// its grid shape still competes in [`choose`].
+const CLOSE_ERR: f64 = 0.5;
+
 /// Which significant candidate `--auto` adds: the diagnosis ranks by the error reduction at a
 /// grid shape, without shape refinement and without charging for parameters. Between the
 /// leading significant candidates (at most three), each is added and fully refitted, and the
@@ -1004,11 +1017,21 @@ fn choose(
     // Only simpler (or equally simple) alternatives may displace the verdict: BIC's penalty
     // is too light to stop a flexible, input-based fingerprint from fitting what two true
     // effects leave together.
+    // A candidate that missed significance only at its grid shape competes too when it came
+    // close to the verdict's error reduction: the grid is coarse for a dynamic fingerprint
+    // (a transmission mode between grid frequencies and ratios explains a few percent there,
+    // and half the residual once refined), so the refitted comparison is the fair one.
+    let close = |c: &diagnose::Candidate| c.err >= CLOSE_ERR * top.err;
     let mut pool: Vec<&diagnose::Candidate> = vec![top];
     pool.extend(
         d.candidates
             .iter()
-            .filter(|c| c.significant && c.effect != verdict && spent(c) <= spent(top))
+            .filter(|c| {
+                c.kind.is_some()
+                    && (c.significant || close(c))
+                    && c.effect != verdict
+                    && spent(c) <= spent(top)
+            })
             .take(2),
     );
     let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
