@@ -28,17 +28,7 @@ struct Run {
 
 impl Run {
     fn traj(&self) -> Trajectory<'_> {
-        Trajectory {
-            dt: DT,
-            input: &self.u,
-            position: &self.q,
-            velocity: &self.v,
-            acceleration: &self.a,
-            raw_input: &self.u,
-            raw_offset: 0,
-            raw_acceleration: &[],
-            lowpass_hz: 0.0,
-        }
+        Trajectory::unfiltered(DT, &self.u, &self.q, &self.v, &self.a)
     }
 
     fn residual(&self, j: f64) -> Vec<f64> {

@@ -537,17 +537,7 @@ pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
 /// single sample and so contribute their memoryless part only.
 pub fn effect_force_at(model: &Model, dt: f64, x: f64, v: f64, a: f64, u: f64) -> f64 {
     let (xs, vs, as_, us) = ([x], [v], [a], [u]);
-    let t = Trajectory {
-        dt,
-        input: &us,
-        position: &xs,
-        velocity: &vs,
-        acceleration: &as_,
-        raw_input: &us,
-        raw_offset: 0,
-        raw_acceleration: &[],
-        lowpass_hz: 0.0,
-    };
+    let t = Trajectory::unfiltered(dt, &us, &xs, &vs, &as_);
     let mut f = 0.0;
     for e in &model.effects {
         for (c, par) in fingerprint(e.kind, &t, &e.shape).iter().zip(&e.params) {

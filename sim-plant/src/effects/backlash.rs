@@ -255,17 +255,7 @@ mod tests {
             .zip(&a)
             .map(|(v, a)| 0.02 * a + 0.05 * v + 0.1 * v.signum() - 0.03)
             .collect();
-        let traj = Trajectory {
-            dt,
-            input: &u,
-            position: &q,
-            velocity: &v,
-            acceleration: &a,
-            raw_input: &u,
-            raw_offset: 0,
-            raw_acceleration: &[],
-            lowpass_hz: 0.0,
-        };
+        let traj = Trajectory::unfiltered(dt, &u, &q, &v, &a);
         let tau = rigid_time_constant(&traj).expect("J and b positive");
         assert!((tau - 0.4).abs() < 1e-9, "J/b = {tau}");
         assert_eq!(shape_grid(&traj).len(), 7 * (LOAD_TIMES.len() + LOAD_FRACTIONS.len()));

@@ -68,7 +68,30 @@ pub struct Trajectory<'a> {
     pub lowpass_hz: f64,
 }
 
-impl Trajectory<'_> {
+impl<'a> Trajectory<'a> {
+    /// A trajectory that is its own whole record, seen unfiltered: the recorded input is
+    /// `input`, there is no history before the first sample and no low-pass (a simulation's
+    /// samples, a single state, a synthetic test signal).
+    pub fn unfiltered(
+        dt: f64,
+        input: &'a [f64],
+        position: &'a [f64],
+        velocity: &'a [f64],
+        acceleration: &'a [f64],
+    ) -> Self {
+        Trajectory {
+            dt,
+            input,
+            position,
+            velocity,
+            acceleration,
+            raw_input: input,
+            raw_offset: 0,
+            raw_acceleration: &[],
+            lowpass_hz: 0.0,
+        }
+    }
+
     /// Number of samples (the shortest of the four series).
     pub fn len(&self) -> usize {
         self.input
@@ -502,17 +525,7 @@ mod tests {
         let v: Vec<f64> = t.iter().map(|t| 3.0 * (3.0 * t).cos()).collect();
         let a: Vec<f64> = t.iter().map(|t| -9.0 * (3.0 * t).sin()).collect();
         let u: Vec<f64> = a.iter().zip(&v).map(|(a, v)| 0.1 * a + 0.5 * v).collect();
-        let traj = Trajectory {
-            dt,
-            input: &u,
-            position: &q,
-            velocity: &v,
-            acceleration: &a,
-            raw_input: &u,
-            raw_offset: 0,
-            raw_acceleration: &[],
-            lowpass_hz: 0.0,
-        };
+        let traj = Trajectory::unfiltered(dt, &u, &q, &v, &a);
         for k in EffectKind::ALL {
             let grid = shape_grid(k, &traj);
             assert!(!grid.is_empty(), "{}", k.name());

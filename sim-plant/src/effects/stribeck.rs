@@ -195,17 +195,7 @@ mod tests {
         let a = [0.3, -0.2, 2.0, 2.0, 0.0];
         let u = [0.7, -0.4, 1.0, 1.0, 1.0];
         let q = [0.0; 5];
-        let traj = Trajectory {
-            dt: 1e-3,
-            input: &u,
-            position: &q,
-            velocity: &v,
-            acceleration: &a,
-            raw_input: &u,
-            raw_offset: 0,
-            raw_acceleration: &[],
-            lowpass_hz: 0.0,
-        };
+        let traj = Trajectory::unfiltered(1e-3, &u, &q, &v, &a);
         let mut shape = Shape {
             stribeck_velocity: 0.1,
             stribeck_exponent: 2.0,
