@@ -148,7 +148,7 @@ pub fn fit_two_segments(points: &[(f64, f64)], sign: f64, threshold: f64) -> Two
         let rows = sel
             .iter()
             .map(|&(d, t)| ([1.0, t.min(tk), (t - tk).max(0.0)], d));
-        let Some(beta) = least_squares3(rows.clone()) else {
+        let Some(beta) = least_squares(rows.clone()) else {
             continue;
         };
         let sse: f64 = rows
@@ -177,38 +177,22 @@ pub fn fit_two_segments(points: &[(f64, f64)], sign: f64, threshold: f64) -> Two
     }
 }
 
-/// Ordinary least squares with 3 regressors via the normal equations (Cramer's rule);
-/// `None` if singular.
-pub fn least_squares3(rows: impl Iterator<Item = ([f64; 3], f64)>) -> Option<[f64; 3]> {
-    let mut a = [[0.0; 3]; 3];
-    let mut b = [0.0; 3];
+/// Ordinary least squares with `P` regressors through the normal equations (LU with partial
+/// pivoting); `None` if they are singular or the solution is not finite.
+pub fn least_squares<const P: usize>(
+    rows: impl Iterator<Item = ([f64; P], f64)>,
+) -> Option<[f64; P]> {
+    let mut a = nalgebra::DMatrix::<f64>::zeros(P, P);
+    let mut b = nalgebra::DVector::<f64>::zeros(P);
     for (x, y) in rows {
-        for i in 0..3 {
-            for j in 0..3 {
-                a[i][j] += x[i] * x[j];
-            }
-            b[i] += x[i] * y;
-        }
+        let x = nalgebra::DVector::from_column_slice(&x);
+        a += &x * x.transpose();
+        b += x * y;
     }
-    let det = |m: &[[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(&a);
-    let scale = a[0][0] * a[1][1] * a[2][2];
-    if d.abs() <= 1e-12 * scale.abs() || d == 0.0 {
-        return None;
-    }
-    let mut out = [0.0; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        let mut m = a;
-        for i in 0..3 {
-            m[i][k] = b[i];
-        }
-        *o = det(&m) / d;
-    }
-    Some(out)
+    let beta = a.lu().solve(&b)?;
+    let mut out = [0.0; P];
+    out.copy_from_slice(beta.as_slice());
+    out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
 /// Straight-line fit y = a + b·x; returns (a, b).

@@ -322,6 +322,8 @@ pub struct Design {
     pub y: Vec<f64>,
     /// Index into [`Model::params`] of each free column.
     pub free: Vec<usize>,
+    /// Rows that carry information (the record's samples minus those held at rest).
+    pub live_rows: usize,
 }
 
 /// Build the free-parameter regression of a model. Samples where the joint is held by static
@@ -346,15 +348,22 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
         }
     }
     cols.extend(initial_state_columns(model, p));
+    let mut live_rows = y.len();
     if let Some(stuck) = stuck {
         for (k, _) in stuck.iter().enumerate().filter(|(_, &s)| s) {
             y[k] = 0.0;
             for c in &mut cols {
                 c[k] = 0.0;
             }
+            live_rows -= 1;
         }
     }
-    Design { cols, y, free }
+    Design {
+        cols,
+        y,
+        free,
+        live_rows,
+    }
 }
 
 /// Whether an effect is part of the dry friction that holds a joint at rest (Coulomb, and the
@@ -450,10 +459,12 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     let d = design(model, p);
     // Only the inertia column (the first) carries the differentiator's acceleration noise.
-    let rows = d.y.iter().filter(|y| **y != 0.0).count() as f64;
+    // The compensation belongs to parameter estimation only: the diagnosis's projections
+    // (`diagnose`, `refine::best_shape`) test what a column adds, for which plain least squares
+    // is the right residual.
     let mut noise = vec![0.0; d.cols.len()];
     if d.free.first() == Some(&0) {
-        noise[0] = rows * p.acceleration_noise_var;
+        noise[0] = d.live_rows as f64 * p.acceleration_noise_var;
     }
     let f = fit::least_squares_compensated(&d.cols, &d.y, &noise)?;
     let mut params = model.params_mut();

@@ -138,44 +138,12 @@ pub const LOAD_FRACTIONS: [f64; 4] = [0.3, 0.5, 0.7, 0.9];
 /// J/b of the rigid fit `input ≈ J·a + b·v + c·sign v + d` on the trajectory (None if either
 /// is not positive): the scale of the load's viscous time constant.
 pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
-    let n = traj.len();
-    let mut g = [[0.0f64; 5]; 4];
-    for i in 0..n {
+    let rows = (0..traj.len()).map(|i| {
         let (v, a) = (traj.velocity[i], traj.acceleration[i]);
-        let s = if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        let z = [a, v, s, 1.0, traj.input[i]];
-        for (row, zr) in g.iter_mut().zip(z) {
-            for (x, zc) in row.iter_mut().zip(z) {
-                *x += zr * zc;
-            }
-        }
-    }
-    // Gaussian elimination with partial pivoting on the 4×4 normal equations.
-    for i in 0..4 {
-        let p = (i..4).max_by(|&x, &y| g[x][i].abs().total_cmp(&g[y][i].abs()))?;
-        g.swap(i, p);
-        if g[i][i].abs() < 1e-300 {
-            return None;
-        }
-        let pivot = g[i];
-        for row in g.iter_mut().skip(i + 1) {
-            let f = row[i] / pivot[i];
-            for (x, p) in row.iter_mut().zip(pivot).skip(i) {
-                *x -= f * p;
-            }
-        }
-    }
-    let mut x = [0.0; 4];
-    for i in (0..4).rev() {
-        let s: f64 = (i + 1..4).map(|c| g[i][c] * x[c]).sum();
-        x[i] = (g[i][4] - s) / g[i][i];
-    }
+        let s = if v == 0.0 { 0.0 } else { v.signum() };
+        ([a, v, s, 1.0], traj.input[i])
+    });
+    let x = crate::experiments::least_squares(rows)?;
     let (j, b) = (x[0], x[1]);
     (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
 }

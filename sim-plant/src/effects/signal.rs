@@ -101,14 +101,19 @@ impl Biquad {
         }
     }
 
-    /// `s²/(s² + 2ζω·s + ω²)` (bilinear transform prewarped at ω = 2π·`f0`).
-    fn highpass(f0: f64, zeta: f64, fs: f64) -> Self {
+    /// `(n₂s² + n₁s + n₀)/(s² + 2ζω·s + ω²)` (bilinear transform prewarped at ω = 2π·`f0`;
+    /// `num` = [n₂, n₁, n₀]; ζ at least 10⁻³). `f0` must be below the Nyquist frequency.
+    fn mode(num: [f64; 3], f0: f64, zeta: f64, fs: f64) -> Self {
         let k = (std::f64::consts::PI * f0 / fs).tan();
+        let c = std::f64::consts::TAU * f0 / k;
+        let zeta = zeta.max(1e-3);
         let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
+        let [n2, n1, n0] = num;
+        let (p1, p0) = (n1 / c, n0 / (c * c));
         Biquad {
-            b0: norm,
-            b1: -2.0 * norm,
-            b2: norm,
+            b0: (n2 + p1 + p0) * norm,
+            b1: 2.0 * (p0 - n2) * norm,
+            b2: (n2 - p1 + p0) * norm,
             a1: 2.0 * (k * k - 1.0) * norm,
             a2: (1.0 - 2.0 * zeta * k + k * k) * norm,
         }
@@ -176,7 +181,7 @@ pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
 pub fn highpass2(x: &[f64], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
     let mut y = x.to_vec();
     if f0 > 0.0 && f0 < fs / 2.0 {
-        Biquad::highpass(f0, zeta.max(1e-3), fs).run(&mut y);
+        Biquad::mode([1.0, 0.0, 0.0], f0, zeta, fs).run(&mut y);
     }
     y
 }
@@ -187,20 +192,7 @@ pub fn highpass2(x: &[f64], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
 pub fn biquad2(x: &[f64], num: [f64; 3], f0: f64, zeta: f64, fs: f64) -> Vec<f64> {
     let mut y = x.to_vec();
     if f0 > 0.0 && f0 < fs / 2.0 {
-        let k = (std::f64::consts::PI * f0 / fs).tan();
-        let c = std::f64::consts::TAU * f0 / k;
-        let zeta = zeta.max(1e-3);
-        let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
-        let [n2, n1, n0] = num;
-        let (p1, p0) = (n1 / c, n0 / (c * c));
-        Biquad {
-            b0: (n2 + p1 + p0) * norm,
-            b1: 2.0 * (p0 - n2) * norm,
-            b2: (n2 - p1 + p0) * norm,
-            a1: 2.0 * (k * k - 1.0) * norm,
-            a2: (1.0 - 2.0 * zeta * k + k * k) * norm,
-        }
-        .run(&mut y);
+        Biquad::mode(num, f0, zeta, fs).run(&mut y);
     }
     y
 }
@@ -214,13 +206,7 @@ pub fn free_response2(n: usize, f0: f64, zeta: f64, fs: f64) -> Vec<Vec<f64>> {
     if !(f0 > 0.0 && f0 < fs / 2.0) {
         return Vec::new();
     }
-    let k = (std::f64::consts::PI * f0 / fs).tan();
-    let zeta = zeta.max(1e-3);
-    let norm = 1.0 / (1.0 + 2.0 * zeta * k + k * k);
-    let (a1, a2) = (
-        2.0 * (k * k - 1.0) * norm,
-        (1.0 - 2.0 * zeta * k + k * k) * norm,
-    );
+    let Biquad { a1, a2, .. } = Biquad::mode([0.0, 0.0, 1.0], f0, zeta, fs);
     [(1.0, 0.0), (0.0, 1.0)]
         .iter()
         .map(|&(mut y1, mut y2)| {
