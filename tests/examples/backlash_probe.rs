@@ -194,6 +194,51 @@ fn probe(seed: u64, t: &Trial) {
             .collect();
         let whole = report("whole", &wh);
         let mut extra = String::new();
+        let motors = [&t.motor[0], &t.motor[1]];
+        for (name, src) in [("oracle true x1", 0), ("oracle enc x1", 1)] {
+            let d: Vec<Vec<f64>> = recs
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let xm: &[f64] = if src == 0 { motors[k] } else { r.x1 };
+                    let x2 = load_from_motor(xm, dt, 20, pl);
+                    let dd: Vec<f64> = r.x1.iter().zip(&x2).map(|(a, b)| a - b).collect();
+                    win(&lp(&dd, &r.p), &r.p)
+                })
+                .collect();
+            let q = report(name, &d);
+            extra += &format!(" {name}: {:.2}/{:.2}", q.0, q.1);
+        }
+        for (name, e) in [
+            ("play true x1", -1.0),
+            ("impact0.85 true x1", 0.85),
+            ("impact0.5 true x1", 0.5),
+            ("impact0.85 enc x1", 1.85),
+        ] {
+            let d: Vec<Vec<f64>> = recs
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let xm: &[f64] = if e > 1.0 { r.x1 } else { motors[k] };
+                    let e = if e > 1.0 { e - 1.0 } else { e };
+                    let nn = xm.len();
+                    let vm: Vec<f64> = (0..nn)
+                        .map(|i| (xm[(i + 1).min(nn - 1)] - xm[i.saturating_sub(1)]) / (2.0 * dt))
+                        .collect();
+                    let dd = if e < 0.0 {
+                        backlash::gap_deflection(xm, &vm, b, tau, dt)
+                    } else {
+                        impact_play(xm, &vm, b, tau, dt, mu, e, true)
+                    };
+                    // δ against the recorded motor position, as the column would be.
+                    let x2: Vec<f64> = xm.iter().zip(&dd).map(|(a, d)| a - d).collect();
+                    let dd: Vec<f64> = r.x1.iter().zip(&x2).map(|(a, b)| a - b).collect();
+                    win(&lp(&dd, &r.p), &r.p)
+                })
+                .collect();
+            let q = report(name, &d);
+            extra += &format!(" {name}: {:.2}/{:.2}", q.0, q.1);
+        }
         for fc2 in [40.0, 100.0, 200.0] {
             for e in [0.0, 0.5, 0.85] {
                 let d: Vec<Vec<f64>> = recs
@@ -572,6 +617,69 @@ fn impact_play(
             }
         }
         out.push(x[i] - x2);
+    }
+    out
+}
+
+/// Oracle: the truth's load driven through the truth's contact law (spring k, damping c in
+/// contact, gap b, viscous b_load, inertia J2) by a motor path known only at the samples
+/// (Catmull–Rom interpolation between them), RK4 at `sub` steps per sample. What the load
+/// would be if the motor's 1 kHz path (`x1`) were all one needed.
+fn load_from_motor(
+    x1: &[f64],
+    dt: f64,
+    sub: usize,
+    pl: &jointlab_tests::hidden::truth::Plant,
+) -> Vec<f64> {
+    let n = x1.len();
+    let at = |t: f64| -> (f64, f64) {
+        let k = (t / dt).floor().clamp(0.0, (n - 2) as f64) as usize;
+        let u = t / dt - k as f64;
+        let p0 = x1[k.saturating_sub(1)];
+        let p1 = x1[k];
+        let p2 = x1[k + 1];
+        let p3 = x1[(k + 2).min(n - 1)];
+        let (m1, m2) = (0.5 * (p2 - p0), 0.5 * (p3 - p1));
+        let (u2, u3) = (u * u, u * u * u);
+        let x = (2.0 * u3 - 3.0 * u2 + 1.0) * p1
+            + (u3 - 2.0 * u2 + u) * m1
+            + (-2.0 * u3 + 3.0 * u2) * p2
+            + (u3 - u2) * m2;
+        let v = ((6.0 * u2 - 6.0 * u) * p1
+            + (3.0 * u2 - 4.0 * u + 1.0) * m1
+            + (-6.0 * u2 + 6.0 * u) * p2
+            + (3.0 * u2 - 2.0 * u) * m2)
+            / dt;
+        (x, v)
+    };
+    let half = 0.5 * pl.backlash;
+    let acc = |t: f64, x2: f64, v2: f64| -> f64 {
+        let (x, v) = at(t);
+        let d = x - x2;
+        let defl = backlash::dead_zone(d, half);
+        let f = pl.k * defl + if defl != 0.0 { pl.c * (v - v2) } else { 0.0 };
+        (f - pl.b_pos * v2) / pl.j2
+    };
+    let h = dt / sub as f64;
+    let (mut x2, mut v2) = (x1[0], 0.0);
+    let mut out = Vec::with_capacity(n);
+    for k in 0..n {
+        out.push(x2);
+        for j in 0..sub {
+            let t = k as f64 * dt + j as f64 * h;
+            let (a1, b1) = (v2, acc(t, x2, v2));
+            let (a2, b2) = (
+                v2 + 0.5 * h * b1,
+                acc(t + 0.5 * h, x2 + 0.5 * h * a1, v2 + 0.5 * h * b1),
+            );
+            let (a3, b3) = (
+                v2 + 0.5 * h * b2,
+                acc(t + 0.5 * h, x2 + 0.5 * h * a2, v2 + 0.5 * h * b2),
+            );
+            let (a4, b4) = (v2 + h * b3, acc(t + h, x2 + h * a3, v2 + h * b3));
+            x2 += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+            v2 += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+        }
     }
     out
 }
