@@ -318,6 +318,20 @@ fn probe(seed: u64, t: &Trial) {
             variant(&format!("lp x1 lp v, width×{k}"), &|r| {
                 backlash::gap_deflection(&pos_lp(r), &vel_lp(r), k * b, tau, dt)
             });
+            let d: Vec<Vec<f64>> = recs
+                .iter()
+                .map(|r| {
+                    let tr = r.p.trajectory();
+                    tr.lowpass(&backlash::gap_deflection(
+                        tr.position,
+                        tr.velocity,
+                        k * b,
+                        tau,
+                        dt,
+                    ))
+                })
+                .collect();
+            report(&format!("window lp, width×{k}"), &d);
         }
     }
     variant("raw x1, raw v", &|r| {
