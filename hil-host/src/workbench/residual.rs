@@ -63,12 +63,6 @@ pub struct Prepared {
     /// fingerprints of the motion filter it from the record's start (see
     /// `sim_plant::effects::Trajectory::raw_acceleration`).
     pub raw_acceleration: Vec<f64>,
-    /// Smoothed position and velocity over the whole record (indexed as `raw_input`): state
-    /// fingerprints of the motion run from the record's start (see
-    /// `sim_plant::effects::Trajectory::raw_position`).
-    pub record_position: Vec<f64>,
-    /// See [`Prepared::record_position`].
-    pub record_velocity: Vec<f64>,
     /// Smoothed position.
     pub position: Vec<f64>,
     /// Velocity.
@@ -119,8 +113,6 @@ impl Prepared {
             velocity: d.velocity[r.clone()].to_vec(),
             acceleration: d.acceleration[r].to_vec(),
             raw_acceleration: d.acceleration.clone(),
-            record_position: d.position.clone(),
-            record_velocity: d.velocity.clone(),
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
@@ -149,8 +141,6 @@ impl Prepared {
             raw_input: &self.raw_input,
             raw_offset: self.raw_offset,
             raw_acceleration: &self.raw_acceleration,
-            raw_position: &self.record_position,
-            raw_velocity: &self.record_velocity,
             lowpass_hz: self.cutoff_hz,
         }
     }

@@ -101,62 +101,28 @@ pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: 
     out
 }
 
-/// Seconds of the record before the trajectory over which [`gap_deflection`] runs: the load's
-/// place in the gap at the trajectory's first sample is then set by the motion before it (any
-/// reversal sweeps the gap) instead of being assumed mid-gap. Bounded so that a shape search on
-/// a window of a long record does not simulate the whole record for every shape.
-pub const PRE_ROLL_S: f64 = 2.0;
-
-/// Cut-off periods of the record after the trajectory that the low-pass of δ sees, so that the
-/// trajectory's last samples are not at the forward–backward filter's edge.
-pub const POST_ROLL_PERIODS: f64 = 5.0;
-
-/// `[−(δ̈ + δ̇/τ)]` of the low-passed [`gap_deflection`], simulated over the trajectory and up
-/// to [`PRE_ROLL_S`] of the record before it (and low-passed with [`POST_ROLL_PERIODS`] after
-/// it) when the trajectory carries its whole record's motion
-/// ([`Trajectory::recorded_motion`]).
+/// `[−(δ̈ + δ̇/τ)]` of the low-passed [`gap_deflection`].
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let tau = shape.backlash_load_time;
-    let dt = traj.dt;
-    let (x, v, win) = traj.recorded_motion();
-    let pre = if dt > 0.0 {
-        ((PRE_ROLL_S / dt).ceil() as usize).min(win.start)
-    } else {
-        0
-    };
-    let post = if dt > 0.0 && traj.lowpass_hz > 0.0 {
-        ((POST_ROLL_PERIODS / (traj.lowpass_hz * dt)).ceil() as usize).min(x.len() - win.end)
-    } else {
-        0
-    };
-    let span = win.start - pre..win.end + post;
     let delta = gap_deflection(
-        &x[span.clone()],
-        &v[span],
+        &traj.position[..n],
+        &traj.velocity[..n],
         shape.backlash_width,
         tau,
-        dt,
+        traj.dt,
     );
     let d = traj.lowpass(&delta);
+    let dt = traj.dt;
     let mut col = vec![0.0; n];
-    for (i, c) in col.iter_mut().enumerate() {
-        let k = pre + i;
-        if k == 0 || k + 1 >= d.len() {
-            continue;
-        }
-        let acc = (d[k + 1] - 2.0 * d[k] + d[k - 1]) / (dt * dt);
-        let vel = (d[k + 1] - d[k - 1]) / (2.0 * dt);
-        *c = -(acc + if tau > 0.0 { vel / tau } else { 0.0 });
+    for i in 1..n.saturating_sub(1) {
+        let acc = (d[i + 1] - 2.0 * d[i] + d[i - 1]) / (dt * dt);
+        let vel = (d[i + 1] - d[i - 1]) / (2.0 * dt);
+        col[i] = -(acc + if tau > 0.0 { vel / tau } else { 0.0 });
     }
-    // The record's own first/last samples have no neighbour: repeat the next one in.
     if n >= 3 {
-        if pre == 0 {
-            col[0] = col[1];
-        }
-        if post == 0 {
-            col[n - 1] = col[n - 2];
-        }
+        col[0] = col[1];
+        col[n - 1] = col[n - 2];
     }
     vec![col]
 }
@@ -261,53 +227,5 @@ mod tests {
         let tau = rigid_time_constant(&traj).expect("J and b positive");
         assert!((tau - 0.4).abs() < 1e-9, "J/b = {tau}");
         assert_eq!(shape_grid(&traj).len(), 7 * (LOAD_TIMES.len() + LOAD_FRACTIONS.len()));
-    }
-
-    /// A window of a record gets the column the whole record has there: the load's place in
-    /// the gap at the window's start comes from the motion before it (pre-roll), not from an
-    /// assumed mid-gap start — which, with the motion parked at an edge, is a crossing that
-    /// never happened.
-    #[test]
-    fn window_column_is_the_records_column_there() {
-        let dt = 1e-3;
-        let n = 3000;
-        let q: Vec<f64> = (0..n)
-            .map(|k| 0.2 * (std::f64::consts::TAU * 0.7 * k as f64 * dt).sin())
-            .collect();
-        let v: Vec<f64> = (0..n)
-            .map(|k| {
-                0.2 * std::f64::consts::TAU * 0.7 * (std::f64::consts::TAU * 0.7 * k as f64 * dt).cos()
-            })
-            .collect();
-        let zero = vec![0.0; n];
-        let shape = Shape {
-            backlash_width: 0.02,
-            backlash_load_time: 0.3,
-            ..Shape::default()
-        };
-        let whole = fingerprint(&Trajectory::unfiltered(dt, &zero, &q, &v, &zero), &shape);
-        let w = 700..2200;
-        let mut traj = Trajectory::unfiltered(
-            dt,
-            &zero[w.clone()],
-            &q[w.clone()],
-            &v[w.clone()],
-            &zero[w.clone()],
-        );
-        traj.raw_offset = w.start;
-        traj.raw_position = &q;
-        traj.raw_velocity = &v;
-        let got = fingerprint(&traj, &shape);
-        for (i, (a, b)) in got[0].iter().zip(&whole[0][w.clone()]).enumerate() {
-            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "sample {i}: {a} vs {b}");
-        }
-        // Without the record's motion the window starts its load mid-gap: a different column.
-        traj.raw_position = &[];
-        let alone = fingerprint(&traj, &shape);
-        let diff = alone[0]
-            .iter()
-            .zip(&whole[0][w])
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        assert!(diff > 1.0, "window-started column equals the record's ({diff})");
     }
 }

@@ -62,14 +62,6 @@ pub struct Trajectory<'a> {
     /// filter does not start with a wrong state where the trajectory begins (its free response
     /// would then be an error lasting several time constants).
     pub raw_acceleration: &'a [f64],
-    /// The smoothed position and velocity over the same whole record as `raw_input` (empty
-    /// when not available: the trajectory's own are used). A fingerprint with a *state* that
-    /// the motion drives (backlash's load position in the gap) is run from before the
-    /// trajectory's first sample, so that its state there is the motion's doing and not an
-    /// assumed start (a load assumed mid-gap where it is at an edge is a spurious crossing).
-    pub raw_position: &'a [f64],
-    /// See [`Trajectory::raw_position`].
-    pub raw_velocity: &'a [f64],
     /// Cut-off (Hz) of the zero-phase low-pass ([`signal::filtfilt`]) the residual went through
     /// (the smoothing differentiator's); 0 = none. Fingerprints built from `raw_input` apply it
     /// so that they see the bandwidth the residual saw.
@@ -96,8 +88,6 @@ impl<'a> Trajectory<'a> {
             raw_input: input,
             raw_offset: 0,
             raw_acceleration: &[],
-            raw_position: &[],
-            raw_velocity: &[],
             lowpass_hz: 0.0,
         }
     }
@@ -130,20 +120,6 @@ impl<'a> Trajectory<'a> {
     /// (`raw_acceleration` if it covers the trajectory at `raw_offset`, else `acceleration`).
     pub fn recorded_acceleration(&self) -> (&[f64], std::ops::Range<usize>) {
         self.whole_record(self.raw_acceleration, self.acceleration)
-    }
-
-    /// The smoothed position and velocity over the whole record and the window of them the
-    /// trajectory covers (`raw_position`/`raw_velocity` if both cover the trajectory at
-    /// `raw_offset`, else the trajectory's own).
-    pub fn recorded_motion(&self) -> (&[f64], &[f64], std::ops::Range<usize>) {
-        let (x, r) = self.whole_record(self.raw_position, self.position);
-        let (v, rv) = self.whole_record(self.raw_velocity, self.velocity);
-        if r == rv && x.len() == v.len() {
-            (x, v, r)
-        } else {
-            let n = self.len();
-            (&self.position[..n], &self.velocity[..n], 0..n)
-        }
     }
 
     /// `whole` and the trajectory's window in it if it covers the trajectory at `raw_offset`,
