@@ -310,6 +310,18 @@ impl NoiseAt {
 
 /// Simulate one record of plant `p` under excitation `e`.
 fn record(p: &Plant, e: &Excitation, noise: NoiseAt, label: &str) -> Recording {
+    record_with_load(p, e, noise, label).0
+}
+
+/// [`record`] and the truth's load and motor positions at the logged samples (never shown to
+/// the workbench: the trials' recordings have the motor encoder only; probes compare with
+/// them).
+fn record_with_load(
+    p: &Plant,
+    e: &Excitation,
+    noise: NoiseAt,
+    label: &str,
+) -> (Recording, [Vec<f64>; 2]) {
     let mut ctl = Pd {
         e,
         prev: e.reference[0],
@@ -346,7 +358,7 @@ fn record(p: &Plant, e: &Excitation, noise: NoiseAt, label: &str) -> Recording {
             &[]
         },
     );
-    Recording {
+    let rec = Recording {
         path: label.into(),
         input: match noise {
             NoiseAt::Recording => m
@@ -363,7 +375,8 @@ fn record(p: &Plant, e: &Excitation, noise: NoiseAt, label: &str) -> Recording {
         dt: DT,
         units: ("N·m".into(), "rad".into()),
         columns: Columns::new("torque_Nm", "q_rad"),
-    }
+    };
+    (rec, [m.load_position, m.motor_true])
 }
 
 /// The starting model a family is diagnosed against: the default baseline, plus Coulomb for
@@ -410,6 +423,12 @@ pub struct Trial {
     pub floor_val: f64,
     /// Input sensor noise σ.
     pub noise_u: f64,
+    /// The truth plant (for probes; the workbench never sees it).
+    pub plant: Plant,
+    /// The truth's load position on the estimation and validation records (for probes).
+    pub load: [Vec<f64>; 2],
+    /// The truth's motor position (before the encoder) on both records (for probes).
+    pub motor: [Vec<f64>; 2],
 }
 
 /// Generate a trial with `families` hidden, each scaled to `target_rho` on its own. `None` if
@@ -490,8 +509,10 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
             twin.join(", ")
         );
     }
-    let est = record(&plant, &d.est, noise, &format!("hidden seed {seed} est"));
-    let val = record(&plant, &d.val, noise, &format!("hidden seed {seed} val"));
+    let (est, [est_load, est_motor]) =
+        record_with_load(&plant, &d.est, noise, &format!("hidden seed {seed} est"));
+    let (val, [val_load, val_motor]) =
+        record_with_load(&plant, &d.val, noise, &format!("hidden seed {seed} val"));
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
     let bounded = |rec: &Recording| {
@@ -512,6 +533,9 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
         floor_est,
         floor_val,
         noise_u: d.noise_u,
+        plant,
+        load: [est_load, val_load],
+        motor: [est_motor, val_motor],
     })
 }
 

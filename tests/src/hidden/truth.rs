@@ -174,6 +174,8 @@ pub struct Measured {
     pub motor_position: Vec<f64>,
     /// Load position (truth).
     pub load_position: Vec<f64>,
+    /// Motor position (truth, before the encoder), at the same instants as `motor_position`.
+    pub motor_true: Vec<f64>,
 }
 
 /// The two views of the motor encoder.
@@ -211,6 +213,7 @@ pub fn simulate(
         command: Vec::with_capacity(n),
         motor_position: Vec::with_capacity(n),
         load_position: Vec::with_capacity(n),
+        motor_true: Vec::with_capacity(n),
     };
     // Command history for the delay line (one entry per sample, held constant over it).
     let mut hist: Vec<f64> = Vec::with_capacity(n);
@@ -228,6 +231,7 @@ pub fn simulate(
                 // of that interval, so a zero-order hold is not itself a half-sample delay.
                 out.motor_position.push(log(s[0]));
                 out.load_position.push(s[2]);
+                out.motor_true.push(s[0]);
             }
             // Applied torque at the sub-step midpoint time, delayed and quantised.
             let applied = |tt: f64| -> f64 {
