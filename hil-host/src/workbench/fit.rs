@@ -22,6 +22,15 @@ pub struct LsFit {
     pub rss: f64,
     /// Blocks used for the covariance.
     pub blocks: usize,
+    /// `θᵀNθ`, N the regressors' noise covariance a compensated fit took off the Gram matrix
+    /// (0 for plain least squares): the part of [`LsFit::rss`] that is the regressors' own
+    /// noise passed through the fitted model. `rss − noise_rss` estimates the RSS the same
+    /// parameters would leave on noise-free regressors — the criterion to compare shapes
+    /// by (see [`least_squares_noise`]).
+    pub noise_rss: f64,
+    /// Standard deviation of the noise energy behind [`LsFit::noise_rss`] on a record of this
+    /// length (0 when not computed; see `residual::noise_energy_sd`).
+    pub noise_rss_sd: f64,
 }
 
 impl LsFit {
@@ -146,6 +155,35 @@ pub fn least_squares_compensated(
     y: &[f64],
     noise: &[f64],
 ) -> Result<LsFit, FitError> {
+    let p = cols.len();
+    let g = gram(cols);
+    let n = DMatrix::from_fn(p, p, |i, j| {
+        if i == j {
+            noise
+                .get(j)
+                .copied()
+                .unwrap_or(0.0)
+                .clamp(0.0, 0.5 * g[(j, j)])
+        } else {
+            0.0
+        }
+    });
+    least_squares_noise(cols, y, &n)
+}
+
+/// Bias-compensated least squares with the regressors' noise covariance `noise` (p×p,
+/// summed over the rows: `n·Cov(noise)`; smaller matrices are padded with zeros): solves
+/// `(XᵀX − N)·θ = Xᵀy`, which minimises `‖y − Xθ‖² − θᵀNθ`, the residual the same θ would
+/// leave on noise-free regressors (plus a constant). The errors-in-variables case of several
+/// columns filtered from one noisy signal (the acceleration and a resonant filter of it): the
+/// noise is correlated across them and the off-diagonal terms matter. N is scaled down, if
+/// need be, so that `XᵀX − N` keeps at least half of `XᵀX` in every direction (a misjudged
+/// noise level cannot make the problem indefinite).
+pub fn least_squares_noise(
+    cols: &[Vec<f64>],
+    y: &[f64],
+    noise: &DMatrix<f64>,
+) -> Result<LsFit, FitError> {
     let n = y.len();
     let p = cols.len();
     if n < p + 2 {
@@ -158,9 +196,15 @@ pub fn least_squares_compensated(
         return Err(FitError::NonFinite);
     }
     let mut g = gram(cols);
-    for (j, &v) in noise.iter().enumerate().take(p) {
-        g[(j, j)] -= v.clamp(0.0, 0.5 * g[(j, j)]);
-    }
+    let nm = DMatrix::from_fn(p, p, |i, j| {
+        if i < noise.nrows() && j < noise.ncols() {
+            noise[(i, j)]
+        } else {
+            0.0
+        }
+    });
+    let nm = nm.scale(noise_scale(&g, &nm));
+    g -= &nm;
     let ginv = gram_inverse(&g);
     let xty = DVector::from_iterator(
         p,
@@ -176,6 +220,7 @@ pub fn least_squares_compensated(
         }
     }
     let rss = residual.iter().map(|r| r * r).sum();
+    let noise_rss = (theta.transpose() * &nm * &theta)[(0, 0)];
     let (cov, blocks) = batch_covariance(cols, &residual, &ginv);
     Ok(LsFit {
         theta: theta.iter().copied().collect(),
@@ -183,7 +228,57 @@ pub fn least_squares_compensated(
         residual,
         rss,
         blocks,
+        noise_rss: if noise_rss.is_finite() {
+            noise_rss
+        } else {
+            0.0
+        },
+        noise_rss_sd: 0.0,
     })
+}
+
+/// Factor in (0, 1] for the noise matrix `nm` so that `g − factor·nm ⪰ ½·g`: the largest
+/// eigenvalue λ of `D·nm·D` relative to `D·g·D` (D the Gram diagonal's inverse square roots,
+/// then a Cholesky whitening of the scaled Gram) is held to ½. 1 when it already is, or when
+/// nothing is to be compensated; 0 when the Gram matrix is not positive definite.
+fn noise_scale(g: &DMatrix<f64>, nm: &DMatrix<f64>) -> f64 {
+    if nm.iter().all(|v| *v == 0.0) {
+        return 1.0;
+    }
+    let p = g.nrows();
+    let d: Vec<f64> = (0..p)
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let gs = DMatrix::from_fn(p, p, |i, j| {
+        g[(i, j)] * d[i] * d[j] + if i == j && d[i] == 0.0 { 1.0 } else { 0.0 }
+    });
+    let ns = DMatrix::from_fn(p, p, |i, j| nm[(i, j)] * d[i] * d[j]);
+    let Some(ch) = gs.cholesky() else {
+        return 0.0;
+    };
+    let l = ch.l();
+    let Some(li) = l.try_inverse() else {
+        return 0.0;
+    };
+    let m = &li * ns * li.transpose();
+    let m = (&m + m.transpose()).scale(0.5);
+    let lmax = m
+        .symmetric_eigenvalues()
+        .iter()
+        .fold(0.0f64, |a, &b| a.max(b));
+    if lmax.is_finite() && lmax > 0.5 {
+        0.5 / lmax
+    } else if lmax.is_finite() {
+        1.0
+    } else {
+        0.0
+    }
 }
 
 /// Result of a Levenberg–Marquardt fit.
