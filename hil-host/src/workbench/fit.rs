@@ -405,6 +405,57 @@ mod tests {
         assert!((bc.theta[0] - 2.0).abs() < 0.05, "{}", bc.theta[0]);
     }
 
+    /// Two regressors filtered from one noisy signal (the signal and its sum with its previous
+    /// sample): their noise is correlated, and the full noise matrix `n·σ²·[[1, 1], [1, 2]]`
+    /// undoes a shrinkage plain least squares shows in both coefficients.
+    #[test]
+    fn full_noise_matrix_undoes_correlated_shrinkage() {
+        let n = 40_000;
+        let sigma: f64 = 0.5;
+        let uniform = super::super::stats::tests_support::unit_uniform;
+        let x: Vec<f64> = (0..n as u64)
+            .map(|i| (uniform(i + 1_000_000) - 0.5) * 12f64.sqrt())
+            .collect();
+        let e: Vec<f64> = (0..n as u64)
+            .map(|i| (uniform(i) - 0.5) * 12f64.sqrt() * sigma)
+            .collect();
+        let pair = |v: &[f64]| -> Vec<f64> {
+            (0..v.len())
+                .map(|i| v[i] + if i > 0 { v[i - 1] } else { 0.0 })
+                .collect()
+        };
+        let y: Vec<f64> = x.iter().zip(pair(&x)).map(|(a, b)| 2.0 * a + b).collect();
+        let xm: Vec<f64> = x.iter().zip(&e).map(|(a, b)| a + b).collect();
+        let cols = [xm.clone(), pair(&xm)];
+        let ols = least_squares(&cols, &y).unwrap();
+        assert!((ols.theta[0] - 2.0).abs() > 0.1, "{:?}", ols.theta);
+        let s2 = n as f64 * sigma * sigma;
+        let nm = DMatrix::from_row_slice(2, 2, &[s2, s2, s2, 2.0 * s2]);
+        let bc = least_squares_noise(&cols, &y, &nm).unwrap();
+        assert!(
+            (bc.theta[0] - 2.0).abs() < 0.05 && (bc.theta[1] - 1.0).abs() < 0.05,
+            "{:?}",
+            bc.theta
+        );
+        // The noise those coefficients pass, θᵀNθ, is what the residual holds.
+        assert!(
+            (bc.noise_rss / bc.rss - 1.0).abs() < 0.05,
+            "{} vs {}",
+            bc.noise_rss,
+            bc.rss
+        );
+    }
+
+    /// A noise matrix larger than half the Gram matrix is scaled down to it.
+    #[test]
+    fn noise_scale_keeps_half_the_gram() {
+        let g = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 2.0]);
+        assert_eq!(noise_scale(&g, &DMatrix::zeros(2, 2)), 1.0);
+        assert_eq!(noise_scale(&g, &g.scale(0.3)), 1.0);
+        let f = noise_scale(&g, &g.scale(0.8));
+        assert!((f - 0.625).abs() < 1e-9, "{f}");
+    }
+
     #[test]
     fn lm_fits_an_exponential() {
         let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.05).collect();

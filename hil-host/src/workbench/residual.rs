@@ -789,6 +789,52 @@ pub fn output_error(model: &Model, p: &Prepared) -> Residual {
 mod tests {
     use super::*;
 
+    /// The spread of white noise's energy through an AR(1) response h = rᵏ: Σₖ Rₖ² =
+    /// (1 + r²)/(1 − r²)³; and a unit impulse passes `rows` independent samples.
+    #[test]
+    fn noise_energy_sd_matches_closed_forms() {
+        let sd = noise_energy_sd(&[1.0], 2.0, 100);
+        assert!((sd - 2.0 * 200f64.sqrt()).abs() < 1e-9, "{sd}");
+        let r: f64 = 0.95;
+        let h: Vec<f64> = (0..2000).map(|k| r.powi(k)).collect();
+        let want = (2.0 * 1000.0 * (1.0 + r * r) / (1.0 - r * r).powi(3)).sqrt();
+        let sd = noise_energy_sd(&h, 1.0, 1000);
+        assert!((sd / want - 1.0).abs() < 1e-6, "{sd} vs {want}");
+        assert_eq!(noise_energy_sd(&[0.0; 8], 1.0, 100), 0.0);
+    }
+
+    /// The noise matrix of the baseline model: the inertia's diagonal is the acceleration
+    /// noise the differentiator's gain predicts, the velocity's is its own, and the two are
+    /// uncorrelated (an even and an odd response).
+    #[test]
+    fn noise_gram_of_the_baseline() {
+        let n = 4000;
+        let sigma: f64 = 1e-4;
+        let uniform = super::super::stats::tests_support::unit_uniform;
+        let rec = Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|k| k as f64 * 1e-3).collect(),
+            input: (0..n).map(|k| (k as f64 * 3e-3).cos()).collect(),
+            output: (0..n as u64)
+                .map(|k| (k as f64 * 3e-3).sin() + (uniform(k) - 0.5) * 12f64.sqrt() * sigma)
+                .collect(),
+            load_output: None,
+            dt: 1e-3,
+            units: ("N·m".into(), "rad".into()),
+            columns: super::super::data::Columns::new("u", "q"),
+        };
+        let p = Prepared::new(&rec, Some(40.0));
+        let m = Model::baseline();
+        let d = design(&m, &p);
+        let g = noise_gram(&p, &d, &noise_responses(&m, &p, &d));
+        let scale = d.live_rows as f64 * p.position_noise_var;
+        let ga = diff::acceleration_noise_gain(40.0, 1e-3).powi(2);
+        let gv = diff::velocity_noise_gain(40.0, 1e-3).powi(2);
+        assert!((g[(0, 0)] / scale / ga - 1.0).abs() < 1e-3, "{}", g[(0, 0)]);
+        assert!((g[(1, 1)] / scale / gv - 1.0).abs() < 1e-3, "{}", g[(1, 1)]);
+        assert!(g[(0, 1)].abs() < 1e-6 * g[(0, 0)], "{}", g[(0, 1)]);
+    }
+
     /// The fourth-difference estimate sees the noise on a position, not the motion under it.
     #[test]
     fn position_noise_variance_ignores_smooth_motion() {
