@@ -163,7 +163,9 @@ pub fn least_squares_compensated(
                 .get(j)
                 .copied()
                 .unwrap_or(0.0)
-                .clamp(0.0, 0.5 * g[(j, j)])
+                // max/min, not clamp: a non-finite Gram matrix is the solver's error to report.
+                .max(0.0)
+                .min(0.5 * g[(j, j)])
         } else {
             0.0
         }
@@ -444,6 +446,18 @@ mod tests {
             bc.noise_rss,
             bc.rss
         );
+    }
+
+    /// Non-finite data is an error, not a panic (a diverged record holds NaN).
+    #[test]
+    fn non_finite_data_is_an_error() {
+        let cols = [vec![1.0, f64::NAN, 2.0, 3.0, 4.0]];
+        let y = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert!(matches!(least_squares(&cols, &y), Err(FitError::NonFinite)));
+        assert!(matches!(
+            least_squares_compensated(&cols, &y, &[1.0]),
+            Err(FitError::NonFinite)
+        ));
     }
 
     /// A noise matrix larger than half the Gram matrix is scaled down to it.
