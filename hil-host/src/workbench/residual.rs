@@ -521,7 +521,8 @@ pub fn noise_responses(model: &Model, p: &Prepared, d: &Design) -> Vec<Option<Ve
     let Some(probe) = p.noise_probe.as_deref() else {
         return out;
     };
-    if !(p.position_noise_var > 0.0) {
+    // Also none for a NaN variance.
+    if p.position_noise_var.is_nan() || p.position_noise_var <= 0.0 {
         return out;
     }
     let mut resp: Vec<Option<Vec<f64>>> = vec![Some(probe.acceleration.clone())];
@@ -577,7 +578,7 @@ pub fn noise_gram(p: &Prepared, d: &Design, resp: &[Option<Vec<f64>>]) -> nalgeb
 /// energy on one record is far from the mean.
 pub fn noise_energy_sd(h: &[f64], sigma2: f64, rows: usize) -> f64 {
     let total: f64 = h.iter().map(|v| v * v).sum();
-    if !(total > 0.0 && sigma2 > 0.0) {
+    if total.is_nan() || sigma2.is_nan() || total <= 0.0 || sigma2 <= 0.0 {
         return 0.0;
     }
     // Support: drop the tail holding less than 1e-9 of the energy.
