@@ -118,9 +118,18 @@ const NOISE_SD_MARGIN: f64 = 3.0;
 /// subtracted, validation 4.3× the floor). So the subtraction's uncertainty is charged at
 /// [`NOISE_SD_MARGIN`] standard deviations (`LsFit::noise_rss_sd`): negligible for broadband
 /// columns, decisive against the narrowest modes.
+///
+/// Only for models with a compliance term: elsewhere the motion-linear columns are the
+/// broadband acceleration and velocity, whose passed noise hardly moves with any shape, and
+/// the plain RSS (at the compensated amplitudes) is kept.
 fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
+    let noise_aware = m.has(EffectKind::Compliance);
     residual::refit(m, p).map_or(f64::INFINITY, |f| {
-        f.rss - f.noise_rss + NOISE_SD_MARGIN * f.noise_rss_sd
+        if noise_aware {
+            f.rss - f.noise_rss + NOISE_SD_MARGIN * f.noise_rss_sd
+        } else {
+            f.rss
+        }
     })
 }
 
