@@ -23,5 +23,4 @@ pub mod model;
 pub mod refine;
 pub mod report;
 pub mod residual;
-pub mod spectral;
 pub mod stats;

@@ -100,37 +100,9 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
     }
 }
 
-/// Standard deviations of the passed noise's energy charged to a shape (see [`ls_rss`]): about
-/// the most favourable deviation a search over a few hundred shapes finds by chance
-/// (Φ⁻¹(1/500) ≈ −2.9).
-const NOISE_SD_MARGIN: f64 = 3.0;
-
-/// Criterion of the least-squares refit of `m` (∞ if it fails); `m` keeps the fitted
-/// amplitudes. The RSS less the part that is the regressors' own (encoder) noise passed
-/// through the fitted model (`LsFit::noise_rss`): the plain RSS rewards shapes that pass
-/// less noise — a damped, shifted compliance mode that does not amplify the acceleration's
-/// noise at its anti-resonance beat the true one (hidden-compliance trials: estimation RMS
-/// 0.41 vs 0.86× the floor, validation 1.26 vs 0.90×) — rather than shapes that fit the
-/// motion. That subtraction is the noise energy's *mean*; a narrow resonance passes few
-/// degrees of freedom, so on one record its noise energy scatters widely, and a search over
-/// modes picks the one whose noise happened to fall short (a trial's search went to ζ = 0.009
-/// where the record's encoder noise density was 0.6× its mean: 3.8 passed against 6.8
-/// subtracted, validation 4.3× the floor). So the subtraction's uncertainty is charged at
-/// [`NOISE_SD_MARGIN`] standard deviations (`LsFit::noise_rss_sd`): negligible for broadband
-/// columns, decisive against the narrowest modes.
-///
-/// Only for models with a compliance term: elsewhere the motion-linear columns are the
-/// broadband acceleration and velocity, whose passed noise hardly moves with any shape, and
-/// the plain RSS (at the compensated amplitudes) is kept.
+/// RSS of the least-squares refit of `m` (∞ if it fails); `m` keeps the fitted amplitudes.
 fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
-    let noise_aware = m.has(EffectKind::Compliance);
-    residual::refit(m, p).map_or(f64::INFINITY, |f| {
-        if noise_aware {
-            f.rss - f.noise_rss + NOISE_SD_MARGIN * f.noise_rss_sd
-        } else {
-            f.rss
-        }
-    })
+    residual::refit(m, p).map_or(f64::INFINITY, |f| f.rss)
 }
 
 /// Try each shape `set(shape, x)` for `x` in `xs` on effect `e`, keep the best by LS RSS.
