@@ -200,6 +200,7 @@ fn search_windowed(
         position: &t.position[w.clone()],
         velocity: &t.velocity[w.clone()],
         acceleration: &t.acceleration[w.clone()],
+        load_position: t.load().map_or(&[], |l| &l[w.clone()]),
         raw_offset: t.raw_offset + w.start,
         ..*t
     };

@@ -89,6 +89,14 @@ pub struct Prepared {
     /// 16-bit encoder's acceleration noise is a few percent of a joint's acceleration, and
     /// the inertia comes out that much low); [`refit`] subtracts it from the Gram matrix.
     pub acceleration_noise_var: f64,
+    /// Smoothed load-side position (an output encoder, `Recording::load_output`), through the
+    /// same zero-phase filter as [`Prepared::position`] and trimmed to the same window; empty
+    /// when the recording has none. The deflection δ = position − load_position is then
+    /// measured, not inferred (see `sim_plant::effects::backlash::fingerprint`).
+    pub load_position: Vec<f64>,
+    /// Variance of the load encoder's noise in the load's acceleration (as
+    /// [`Prepared::acceleration_noise_var`]; 0 without a load position).
+    pub load_acceleration_noise_var: f64,
 }
 
 impl Prepared {
@@ -100,8 +108,22 @@ impl Prepared {
         let r = e..rec.len() - e;
         let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
         let floor = super::metrics::noise_floor(&rec.input) * diff::noise_gain(fc, 1.0 / rec.dt);
-        let acceleration_noise_var = position_noise_variance(&rec.output)
-            * diff::acceleration_noise_gain(fc, rec.dt).powi(2);
+        let acc_gain2 = diff::acceleration_noise_gain(fc, rec.dt).powi(2);
+        let acceleration_noise_var = position_noise_variance(&rec.output) * acc_gain2;
+        // A load column of another length is not the same record's: ignored rather than
+        // misaligned (`data::load` reads both from one file, so only a hand-built recording
+        // can get here).
+        let load = rec
+            .load_output
+            .as_ref()
+            .filter(|x| x.len() == rec.output.len());
+        let (load_position, load_acceleration_noise_var) = match load {
+            Some(x) => (
+                diff::filtfilt(x, fc, 1.0 / rec.dt)[r.clone()].to_vec(),
+                position_noise_variance(x) * acc_gain2,
+            ),
+            None => (Vec::new(), 0.0),
+        };
         let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
             input: uf[r.clone()].to_vec(),
@@ -118,6 +140,8 @@ impl Prepared {
             input_instrument: Vec::new(),
             stick_velocity: quantisation_step(&rec.output) * diff::step_velocity_peak(fc, rec.dt),
             acceleration_noise_var,
+            load_position,
+            load_acceleration_noise_var,
         };
         p.input_instrument = instrument(&p);
         p
@@ -142,6 +166,7 @@ impl Prepared {
             raw_offset: self.raw_offset,
             raw_acceleration: &self.raw_acceleration,
             lowpass_hz: self.cutoff_hz,
+            load_position: &self.load_position,
         }
     }
 

@@ -101,19 +101,40 @@ pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: 
     out
 }
 
-/// `[−(δ̈ + δ̇/τ)]` of the low-passed [`gap_deflection`].
+/// `[−(δ̈ + δ̇/τ)]` of the deflection δ: **measured** (motor minus load position, both
+/// low-passed as the motion) when the trajectory has a load position, else the low-passed
+/// [`gap_deflection`] estimated from the motor's motion alone.
+///
+/// With a load encoder the column is the rigid model's exact remainder for any motion of the
+/// load, so the width no longer shapes it (see [`measured_width`] for the width a fit
+/// reports) and only τ is searched. The motor encoder alone cannot say where the load sits in
+/// the gap while a light motor chatters against it (`tests/examples/backlash_probe.rs`: the
+/// play operator's error is the motor's sub-count separation from the load); the load
+/// encoder measures exactly that.
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let tau = shape.backlash_load_time;
-    let delta = gap_deflection(
-        &traj.position[..n],
-        &traj.velocity[..n],
-        shape.backlash_width,
-        tau,
-        traj.dt,
-    );
-    let d = traj.lowpass(&delta);
-    let dt = traj.dt;
+    let d = match traj.load() {
+        Some(load) => measured_deflection(&traj.position[..n], load),
+        None => traj.lowpass(&gap_deflection(
+            &traj.position[..n],
+            &traj.velocity[..n],
+            shape.backlash_width,
+            tau,
+            traj.dt,
+        )),
+    };
+    vec![deflection_column(&d, tau, traj.dt)]
+}
+
+/// δ = motor − load position, sample by sample.
+fn measured_deflection(motor: &[f64], load: &[f64]) -> Vec<f64> {
+    motor.iter().zip(load).map(|(x1, x2)| x1 - x2).collect()
+}
+
+/// `−(δ̈ + δ̇/τ)` by central differences (τ = 0: no viscous term), edges copied.
+fn deflection_column(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
+    let n = d.len();
     let mut col = vec![0.0; n];
     for i in 1..n.saturating_sub(1) {
         let acc = (d[i + 1] - 2.0 * d[i] + d[i - 1]) / (dt * dt);
@@ -124,7 +145,22 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         col[0] = col[1];
         col[n - 1] = col[n - 2];
     }
-    vec![col]
+    col
+}
+
+/// The gap's width as the measured deflection shows it (None without a load position): the
+/// spread between the 1st and 99th percentiles of δ = motor − load (low-passed). A gap's δ
+/// dwells at ±b/2 whenever the motor pushes (the contact's own compression is far below an
+/// encoder count on a stiff transmission), so its spread is the width; the percentiles keep
+/// single noise samples and the filter's overshoot at impacts out of it. This is what a fit
+/// with a load encoder reports as the width: the column itself does not depend on it.
+pub fn measured_width(traj: &Trajectory) -> Option<f64> {
+    let n = traj.len();
+    let load = traj.load()?;
+    let mut d = measured_deflection(&traj.position[..n], load);
+    d.sort_by(f64::total_cmp);
+    let q = |p: f64| d[((n - 1) as f64 * p).round() as usize];
+    Some((q(0.99) - q(0.01)).max(0.0))
 }
 
 /// Load time constants of the shape grid (s; 0 = no decay), besides the ones scaled on the
@@ -162,9 +198,15 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     if let Some(t) = rigid_time_constant(traj) {
         taus.extend(LOAD_FRACTIONS.iter().map(|f| f * t));
     }
+    // With a load position the column does not depend on the width: one per τ, at the
+    // measured width (a grid over widths would only multiply the search's multiplicity).
+    let widths = match measured_width(traj) {
+        Some(b) => vec![b],
+        None => log_space(3e-4 * span, 0.1 * span, 7),
+    };
     let mut out = Vec::new();
     for tau in taus {
-        for b in log_space(3e-4 * span, 0.1 * span, 7) {
+        for &b in &widths {
             out.push(Shape {
                 backlash_width: b,
                 backlash_load_time: tau,
@@ -178,16 +220,18 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
 /// Around the best grid shape: widths within ±60 % (steps of 8 %; the coarse grid's step is
 /// ×2.6 and the fit's minimum in the width only about ±15 % wide) and load time constants
 /// within a factor 2 (steps of 20 %; from "no decay": the long ones above the grid's 2.5 s).
-pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+/// With a load position only τ (the width does not shape the column).
+pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     let (b0, t0) = (best.backlash_width, best.backlash_load_time);
     let taus: Vec<f64> = if t0 > 0.0 {
         (-4..=4).map(|k| t0 * 1.2f64.powi(k)).collect()
     } else {
         vec![4.0, 6.3, 10.0, 0.0]
     };
+    let ks = if traj.load().is_some() { 0..=0 } else { -6..=6 };
     let mut out = Vec::new();
     for &tau in &taus {
-        for k in -6..=6 {
+        for k in ks.clone() {
             out.push(Shape {
                 backlash_width: b0 * 1.08f64.powi(k),
                 backlash_load_time: tau,
