@@ -101,30 +101,147 @@ pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: 
     out
 }
 
-/// `[−(δ̈ + δ̇/τ)]` of the deflection δ: **measured** (motor minus load position, both
-/// low-passed as the motion) when the trajectory has a load position, else the low-passed
-/// [`gap_deflection`] estimated from the motor's motion alone.
-///
-/// With a load encoder the column is the rigid model's exact remainder for any motion of the
-/// load, so the width no longer shapes it (see [`measured_width`] for the width a fit
-/// reports) and only τ is searched. The motor encoder alone cannot say where the load sits in
-/// the gap while a light motor chatters against it (`tests/examples/backlash_probe.rs`: the
-/// play operator's error is the motor's sub-count separation from the load); the load
-/// encoder measures exactly that.
+/// The backlash column: `−(δ̈ + δ̇/τ)` of the low-passed [`gap_deflection`] estimated from
+/// the motor's motion alone, or, when the trajectory has a load position, the same law with
+/// the load's *measured* motion (see [`measured_column`]; empty — not testable — when the
+/// measured deflection shows no gap).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let tau = shape.backlash_load_time;
-    let d = match traj.load() {
-        Some(load) => measured_deflection(&traj.position[..n], load),
-        None => traj.lowpass(&gap_deflection(
-            &traj.position[..n],
-            &traj.velocity[..n],
-            shape.backlash_width,
-            tau,
-            traj.dt,
-        )),
-    };
+    if let Some(load) = traj.load() {
+        return measured_column(traj, load, tau).into_iter().collect();
+    }
+    let d = traj.lowpass(&gap_deflection(
+        &traj.position[..n],
+        &traj.velocity[..n],
+        shape.backlash_width,
+        tau,
+        traj.dt,
+    ));
     vec![deflection_column(&d, tau, traj.dt)]
+}
+
+/// The column with a measured load position x₂ (motor x₁, both low-passed as the motion):
+/// `−(ẍ₁ + ẋ₁/τ) + w(t)·(ẍ₂ + ẋ₂/τ)`, w = 1 where the load is in contact with the motor
+/// ([`contact`]), 0 inside the gap. `None` when the measured deflection shows no gap
+/// ([`shows_gap`]). The width does not enter: the gap is the measured one
+/// ([`measured_width`]).
+///
+/// Why not simply `−(δ̈ + δ̇/τ)` of the measured δ = x₁ − x₂ (w ≡ 1): that is Newton's law
+/// for *any* motor–load pair (the rigid model's exact remainder whatever the transmission),
+/// so it explains a compliant shaft as well as a gap — on the compliance trials with a load
+/// encoder it took rank 1 from compliance in 24 of 24. What makes a gap a gap is that inside
+/// it the transmission carries no torque: the load coasts, J₂·ẍ₂ + b_load·ẋ₂ = 0, and the
+/// rigid model's remainder is −J₂·(ẍ₁ + ẋ₁/τ), the motor's motion alone; the load's measured
+/// motion enters only in contact. Where the motor chatters against the load (which the motor
+/// encoder alone cannot resolve, `tests/examples/backlash_probe.rs`) the low-passed δ stays
+/// near the edge, so the measured motion carries it.
+pub fn measured_column(traj: &Trajectory, load: &[f64], tau: f64) -> Option<Vec<f64>> {
+    let n = traj.len().min(load.len());
+    let x1 = &traj.position[..n];
+    let d = measured_deflection(x1, &load[..n]);
+    if !shows_gap(&d) {
+        return None;
+    }
+    let w = contact(traj, &d);
+    let m = deflection_column(x1, tau, traj.dt);
+    let l = deflection_column(&load[..n], tau, traj.dt);
+    Some(
+        m.iter()
+            .zip(&l)
+            .zip(&w)
+            .map(|((m, l), &c)| if c { m - l } else { *m })
+            .collect(),
+    )
+}
+
+/// Whether a measured deflection `d` looks like a gap: it spends at most [`GAP_CENTRE_MAX`] of
+/// the time in the central [`GAP_CENTRE`] of its extent. A load in a gap is pushed at one
+/// edge or the other and crosses the gap quickly (the light motor alone accelerates through
+/// it), so the low-passed δ piles up at two levels (on the backlash trials ≥ 90 % of the
+/// samples in the outer fifths, ≤ 2 % in the central 40 %); a spring's deflection follows the
+/// transmitted torque through zero and lingers there (25–97 % in the central 40 % on the
+/// compliance trials), and a rigid joint's δ is encoder noise, Gaussian about its mean
+/// (≈ 65 %). This is what keeps a compliant transmission's deflection from being read as a
+/// gap whose contact phases are its largest excursions (which carry most of a spring's
+/// torque).
+pub fn shows_gap(d: &[f64]) -> bool {
+    let Some((lo, hi)) = extent(d) else {
+        return false;
+    };
+    let (c, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    if half <= 0.0 {
+        return false;
+    }
+    let centre = d
+        .iter()
+        .filter(|x| (*x - c).abs() < GAP_CENTRE * half)
+        .count();
+    (centre as f64) <= GAP_CENTRE_MAX * d.len() as f64
+}
+
+/// Central part of the measured extent (a fraction of it) a gap's deflection crosses quickly.
+pub const GAP_CENTRE: f64 = 0.4;
+
+/// Largest share of the samples a gap's deflection spends in the [`GAP_CENTRE`].
+pub const GAP_CENTRE_MAX: f64 = 0.1;
+
+/// Samples where the load is in contact with the motor, from the measured deflection `d`:
+/// within [`CONTACT_SPREAD`] of a sample whose |δ − c| is at least [`CONTACT_FRACTION`] of the
+/// half extent, c the centre of δ's measured extent (the two encoders' zeros are arbitrary).
+/// The threshold is well inside the edge: δ sits a fraction of a count inside it while the
+/// motor chatters, and an edge-near threshold fitted on one record missed another record's
+/// contact phases (a contact phase taken for free flight costs the whole transmitted
+/// torque; a gap crossing taken for contact costs nothing, the load coasting there is
+/// measured too). The spread covers the low-pass's smearing of each impact (an impact's
+/// filtered acceleration starts before the filtered δ reaches the edge).
+pub fn contact(traj: &Trajectory, d: &[f64]) -> Vec<bool> {
+    let n = d.len();
+    let Some((lo, hi)) = extent(d) else {
+        return vec![true; n];
+    };
+    let (c, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    let at_edge: Vec<bool> = d
+        .iter()
+        .map(|x| (x - c).abs() >= CONTACT_FRACTION * half)
+        .collect();
+    let spread = if traj.lowpass_hz > 0.0 && traj.dt > 0.0 {
+        (CONTACT_SPREAD / (traj.lowpass_hz * traj.dt)).round() as usize
+    } else {
+        0
+    };
+    dilate(&at_edge, spread)
+}
+
+/// Contact threshold, as a fraction of the measured deflection's half extent.
+pub const CONTACT_FRACTION: f64 = 0.5;
+
+/// Spread of a contact phase around the samples at the gap's edge, in periods of the
+/// low-pass cut-off.
+pub const CONTACT_SPREAD: f64 = 0.25;
+
+/// Share of the samples in contact (see [`contact`]) on a trajectory with a load position
+/// that shows a gap; None otherwise.
+pub fn contact_share(traj: &Trajectory) -> Option<f64> {
+    let n = traj.len();
+    let d = measured_deflection(&traj.position[..n], traj.load()?);
+    if !shows_gap(&d) {
+        return None;
+    }
+    let w = contact(traj, &d);
+    Some(w.iter().filter(|&&c| c).count() as f64 / n.max(1) as f64)
+}
+
+/// `mask` widened by `k` samples each side.
+fn dilate(mask: &[bool], k: usize) -> Vec<bool> {
+    let n = mask.len();
+    let mut out = vec![false; n];
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+        for o in &mut out[i.saturating_sub(k)..(i + k + 1).min(n)] {
+            *o = true;
+        }
+    }
+    out
 }
 
 /// δ = motor − load position, sample by sample.
@@ -132,7 +249,19 @@ fn measured_deflection(motor: &[f64], load: &[f64]) -> Vec<f64> {
     motor.iter().zip(load).map(|(x1, x2)| x1 - x2).collect()
 }
 
-/// `−(δ̈ + δ̇/τ)` by central differences (τ = 0: no viscous term), edges copied.
+/// The 1st and 99th percentiles of `d` (None if empty): its extent without single noise
+/// samples and the filter's overshoot at impacts.
+fn extent(d: &[f64]) -> Option<(f64, f64)> {
+    if d.is_empty() {
+        return None;
+    }
+    let mut s = d.to_vec();
+    s.sort_by(f64::total_cmp);
+    let q = |p: f64| s[((s.len() - 1) as f64 * p).round() as usize];
+    Some((q(0.01), q(0.99)))
+}
+
+/// `−(ẍ + ẋ/τ)` by central differences (τ = 0: no viscous term), edges copied.
 fn deflection_column(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
     let n = d.len();
     let mut col = vec![0.0; n];
@@ -148,19 +277,18 @@ fn deflection_column(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
     col
 }
 
-/// The gap's width as the measured deflection shows it (None without a load position): the
+/// The gap's width as the load encoder measures it (None without a load position): the
 /// spread between the 1st and 99th percentiles of δ = motor − load (low-passed). A gap's δ
-/// dwells at ±b/2 whenever the motor pushes (the contact's own compression is far below an
-/// encoder count on a stiff transmission), so its spread is the width; the percentiles keep
-/// single noise samples and the filter's overshoot at impacts out of it. This is what a fit
-/// with a load encoder reports as the width: the column itself does not depend on it.
+/// dwells at ±b/2 whenever the motor pushes (a stiff contact's compression is far below an
+/// encoder count), so its extent is the gap; the percentiles keep single noise samples and
+/// the filter's overshoot at impacts out of it. A fit with a load position reports it as the
+/// width (the column itself is built from the measured deflection, see
+/// [`measured_column`]).
 pub fn measured_width(traj: &Trajectory) -> Option<f64> {
     let n = traj.len();
     let load = traj.load()?;
-    let mut d = measured_deflection(&traj.position[..n], load);
-    d.sort_by(f64::total_cmp);
-    let q = |p: f64| d[((n - 1) as f64 * p).round() as usize];
-    Some((q(0.99) - q(0.01)).max(0.0))
+    let (lo, hi) = extent(&measured_deflection(&traj.position[..n], load))?;
+    Some((hi - lo).max(0.0))
 }
 
 /// Load time constants of the shape grid (s; 0 = no decay), besides the ones scaled on the
@@ -198,8 +326,8 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     if let Some(t) = rigid_time_constant(traj) {
         taus.extend(LOAD_FRACTIONS.iter().map(|f| f * t));
     }
-    // With a load position the column does not depend on the width: one per τ, at the
-    // measured width (a grid over widths would only multiply the search's multiplicity).
+    // With a load position the width is measured and does not shape the column: one per τ
+    // (a grid over widths would only multiply the search's multiplicity).
     let widths = match measured_width(traj) {
         Some(b) => vec![b],
         None => log_space(3e-4 * span, 0.1 * span, 7),
@@ -220,7 +348,7 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
 /// Around the best grid shape: widths within ±60 % (steps of 8 %; the coarse grid's step is
 /// ×2.6 and the fit's minimum in the width only about ±15 % wide) and load time constants
 /// within a factor 2 (steps of 20 %; from "no decay": the long ones above the grid's 2.5 s).
-/// With a load position only τ (the width does not shape the column).
+/// With a load position only τ (the width is measured).
 pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     let (b0, t0) = (best.backlash_width, best.backlash_load_time);
     let taus: Vec<f64> = if t0 > 0.0 {

@@ -691,7 +691,7 @@ pub fn run_with(
                     let sh = &e.shape;
                     eprintln!(
                         "  {}: sign ε {:.3e}, lead {:.2e} s; mode {:.2} Hz ζ {:.3} J1 {:.2e} \
-                         ratio {:.2}; quantum {:.4e}",
+                         ratio {:.2}; quantum {:.4e}; gap {:.4e} (measured {:.4e} / {:.4e}) τ {:.3}",
                         e.kind.name(),
                         sh.sign_epsilon,
                         sh.sign_lead,
@@ -699,7 +699,13 @@ pub fn run_with(
                         sh.compliance_damping,
                         sh.compliance_near_inertia,
                         sh.compliance_ratio,
-                        sh.quantum
+                        sh.quantum,
+                        sh.backlash_width,
+                        sim_plant::effects::backlash::measured_width(&pe.trajectory())
+                            .unwrap_or(f64::NAN),
+                        sim_plant::effects::backlash::measured_width(&pv.trajectory())
+                            .unwrap_or(f64::NAN),
+                        sh.backlash_load_time
                     );
                 }
             }
