@@ -483,10 +483,9 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
 /// Summed noise (co)variances of the design's free columns, `(j, k, v)` for
 /// [`fit::least_squares_noise_cov`]: the encoder noise that reaches them through the
 /// differentiator. The inertia column (the first) carries the motor encoder's acceleration
-/// noise σ₁²; a backlash column built with a *measured* load position,
-/// −(ẍ₁ + ẋ₁/τ) + w·(ẍ₂ + ẋ₂/τ) (`backlash::measured_column`), carries σ₁² on every row and
-/// the load encoder's σ₂² on the rows in contact (w = 1), and shares −σ₁² with the inertia
-/// column. Without the shared term the load inertia came out 5–7 % low on the load-encoder
+/// noise σ₁²; a backlash column built from a *measured* deflection, −(δ̈ + δ̇/τ) with
+/// δ = x_motor − x_load, carries σ₁² + σ₂² (the load encoder's too) and shares −σ₁² with the
+/// inertia column. Without the shared term the load inertia came out 5–7 % low on the load-encoder
 /// trials (errors-in-variables). The velocity parts (ẋ/τ, the viscous column) are left out:
 /// relative to its signal a velocity's noise is ~ω_c² below an acceleration's.
 fn column_noise(model: &Model, p: &Prepared, d: &Design) -> Vec<(usize, usize, f64)> {
@@ -497,12 +496,11 @@ fn column_noise(model: &Model, p: &Prepared, d: &Design) -> Vec<(usize, usize, f
     if inertia.is_some() {
         out.push((0, 0, rows * p.acceleration_noise_var));
     }
-    let contact = sim_plant::effects::backlash::contact_share(&p.trajectory());
-    if let Some(frac) = contact {
+    if !p.load_position.is_empty() {
         for (k, &i) in d.free.iter().enumerate() {
             if owner[i] == Some(EffectKind::Backlash) {
                 let (s1, s2) = (p.acceleration_noise_var, p.load_acceleration_noise_var);
-                out.push((k, k, rows * (s1 + frac * s2)));
+                out.push((k, k, rows * (s1 + s2)));
                 if let Some(j) = inertia {
                     out.push((j, k, -rows * s1));
                 }

@@ -446,6 +446,16 @@ pub fn initial_state(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> Vec<
     }
 }
 
+/// Why the record itself rules `kind` out, if it does (then it is not a candidate): a load
+/// position whose deflection shows no gap rules out a backlash (`backlash::ruled_out`).
+/// `None` for the other effects and for records without such evidence.
+pub fn ruled_out(kind: EffectKind, traj: &Trajectory) -> Option<&'static str> {
+    match kind {
+        EffectKind::Backlash => backlash::ruled_out(traj),
+        _ => None,
+    }
+}
+
 /// Whether the record resolves `shape` of `kind`: false when a shape search ends at the edge
 /// of what the record can identify — a compliance mode at or above the top of its grid (above
 /// the residual's bandwidth only `J2/(J1·ω²)` is identifiable, not the mode, and a stiff
