@@ -698,4 +698,34 @@ mod tests {
         let smooth: Vec<f64> = (0..20_000).map(|i| (i as f64 * 2e-3).sin()).collect();
         assert!(position_noise_variance(&smooth) < 1e-6 * sigma * sigma);
     }
+
+    /// The load-side position goes through the motor position's filter and window (a load
+    /// that follows the motor exactly gives δ ≡ 0), its noise is estimated like the motor's,
+    /// and a load column of another length is ignored rather than misaligned.
+    #[test]
+    fn load_position_is_processed_like_the_motor_position() {
+        let n = 3000;
+        let dt = 1e-3;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * dt * 3.0).sin()).collect();
+        let rec = |load: Option<Vec<f64>>| Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|i| i as f64 * dt).collect(),
+            input: x.iter().map(|v| 0.1 * v).collect(),
+            output: x.clone(),
+            load_output: load,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: super::super::data::Columns::new("u_Nm", "q_rad"),
+        };
+        let p = Prepared::new(&rec(Some(x.clone())), Some(40.0));
+        assert_eq!(p.load_position.len(), p.position.len());
+        assert!(p.load_position.iter().zip(&p.position).all(|(a, b)| a == b));
+        assert_eq!(p.trajectory().load(), Some(&p.load_position[..]));
+        assert!((p.load_acceleration_noise_var - p.acceleration_noise_var).abs() < 1e-12);
+        let short = Prepared::new(&rec(Some(x[..n - 1].to_vec())), Some(40.0));
+        assert!(short.load_position.is_empty() && short.trajectory().load().is_none());
+        assert!(Prepared::new(&rec(None), Some(40.0))
+            .load_position
+            .is_empty());
+    }
 }

@@ -302,6 +302,106 @@ pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
 mod tests {
     use super::*;
 
+    /// A two-mass joint, any transmission: motor x1, load x2, u = J1·ẍ1 + J2·ẍ2 + b·ẋ2. The
+    /// rigid model J·ẍ1 + b·ẋ1 leaves exactly J2·(−(δ̈ + δ̇/τ)), τ = J2/b, with δ = x1 − x2 —
+    /// the column with a load position, whatever the width in the shape.
+    #[test]
+    fn measured_column_is_the_rigid_models_exact_remainder() {
+        let (n, dt) = (4000, 1e-3);
+        let (j1, j2, b) = (0.003, 0.02, 0.04);
+        let x1: Vec<f64> = (0..n)
+            .map(|i| (2.0 * i as f64 * dt).sin() + 0.3 * (7.0 * i as f64 * dt).sin())
+            .collect();
+        let x2: Vec<f64> = (0..n)
+            .map(|i| x1[i] - 1e-3 * (13.0 * i as f64 * dt).sin())
+            .collect();
+        let d1 = |x: &[f64], i: usize| (x[i + 1] - x[i - 1]) / (2.0 * dt);
+        let d2 = |x: &[f64], i: usize| (x[i + 1] - 2.0 * x[i] + x[i - 1]) / (dt * dt);
+        let v: Vec<f64> = (0..n).map(|i| if i == 0 || i == n - 1 { 0.0 } else { d1(&x1, i) }).collect();
+        let a: Vec<f64> = (0..n).map(|i| if i == 0 || i == n - 1 { 0.0 } else { d2(&x1, i) }).collect();
+        let u = vec![0.0; n];
+        let traj = Trajectory {
+            load_position: &x2,
+            ..Trajectory::unfiltered(dt, &u, &x1, &v, &a)
+        };
+        for width in [1e-4, 0.5] {
+            let shape = Shape {
+                backlash_width: width,
+                backlash_load_time: j2 / b,
+                ..Shape::default()
+            };
+            let col = &fingerprint(&traj, &shape)[0];
+            for (i, c) in col.iter().enumerate().take(n - 1).skip(1) {
+                let u = j1 * d2(&x1, i) + j2 * d2(&x2, i) + b * d1(&x2, i);
+                let r = u - (j1 + j2) * d2(&x1, i) - b * d1(&x1, i);
+                let err = (r - j2 * c).abs();
+                assert!(err < 1e-9 * (1.0 + r.abs()), "{i}: {r} vs {}", j2 * c);
+            }
+        }
+        // Without a load position the play operator is used: another column.
+        let plain = Trajectory::unfiltered(dt, &u, &x1, &v, &a);
+        assert!(plain.load().is_none() && traj.load().is_some());
+        let shape = Shape::default();
+        assert_ne!(fingerprint(&plain, &shape), fingerprint(&traj, &shape));
+    }
+
+    /// A gap's deflection dwells at two edges and is measured as the gap's width; a spring's
+    /// (sinusoidal) deflection and a rigid joint's encoder noise linger mid-range and rule a
+    /// backlash out.
+    #[test]
+    fn a_gap_is_told_from_a_spring_and_from_noise() {
+        let n = 20_000;
+        let b = 2e-3;
+        // Pushed at one edge or the other, crossing in 5 ms every 0.5 s, plus a little noise.
+        let noise = |i: usize| 2e-5 * ((i * 7919 % 101) as f64 / 50.0 - 1.0);
+        let gap: Vec<f64> = (0..n)
+            .map(|i| {
+                let ph = i % 1000;
+                let edge = if ph < 500 { 0.5 * b } else { -0.5 * b };
+                let cross = match ph {
+                    0..5 => -0.5 * b + b * ph as f64 / 5.0,
+                    500..505 => 0.5 * b - b * (ph - 500) as f64 / 5.0,
+                    _ => edge,
+                };
+                cross + noise(i) + 0.7
+            })
+            .collect();
+        let spring: Vec<f64> = (0..n).map(|i| b * (i as f64 * 0.01).sin()).collect();
+        let rigid: Vec<f64> = (0..n)
+            .map(|i| {
+                let u1 = ((i * 7919 + 13) % 1009) as f64 / 1009.0;
+                let u2 = ((i * 104_729 + 7) % 1013) as f64 / 1013.0;
+                1e-5 * (u1 + u2 - 1.0)
+            })
+            .collect();
+        assert!(shows_gap(&gap));
+        assert!(!shows_gap(&spring));
+        assert!(!shows_gap(&rigid));
+        let zero = vec![0.0; n];
+        let traj = |load: &[f64]| -> (Option<f64>, bool) {
+            let t = Trajectory {
+                load_position: load,
+                ..Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero)
+            };
+            (measured_width(&t), ruled_out(&t).is_some())
+        };
+        // δ = motor − load = −load here.
+        let neg = |x: &[f64]| -> Vec<f64> { x.iter().map(|v| -v).collect() };
+        let (w, out) = traj(&neg(&gap));
+        assert!(!out);
+        assert!((w.expect("load") / b - 1.0).abs() < 0.05, "{w:?}");
+        assert!(traj(&neg(&spring)).1 && traj(&neg(&rigid)).1);
+        let none = Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero);
+        assert!(measured_width(&none).is_none() && ruled_out(&none).is_none());
+        // One width per τ in the grid with a load position.
+        let t = Trajectory {
+            load_position: &gap,
+            ..Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero)
+        };
+        assert!(shape_grid(&t).iter().all(|s| s.backlash_width == shape_grid(&t)[0].backlash_width));
+        assert!(refine_grid(&t, &shape_grid(&t)[0]).len() <= 9);
+    }
+
     /// The shape grid's time-constant scale is J/b of the rigid fit, whatever the Coulomb
     /// level and offset riding on the input.
     #[test]

@@ -554,22 +554,20 @@ pub fn generate_with(
             twin.join(", ")
         );
     }
-    let (est, [est_load, est_motor]) =
-        record_with_load(
-            &plant,
-            &d.est,
-            noise,
-            &format!("hidden seed {seed} est"),
-            opts.load_encoder,
-        );
-    let (val, [val_load, val_motor]) =
-        record_with_load(
-            &plant,
-            &d.val,
-            noise,
-            &format!("hidden seed {seed} val"),
-            opts.load_encoder,
-        );
+    let (est, [est_load, est_motor]) = record_with_load(
+        &plant,
+        &d.est,
+        noise,
+        &format!("hidden seed {seed} est"),
+        opts.load_encoder,
+    );
+    let (val, [val_load, val_motor]) = record_with_load(
+        &plant,
+        &d.val,
+        noise,
+        &format!("hidden seed {seed} val"),
+        opts.load_encoder,
+    );
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
     let bounded = |rec: &Recording| {
