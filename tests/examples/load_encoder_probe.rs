@@ -7,7 +7,9 @@
 //! its measured extent (20 bins, % of samples), the share of samples in its central 40 %
 //! (`backlash::shows_gap`), and the share of the transmitted torque's
 //! energy (J2·ẍ₂ + b·ẋ₂ from the truth's parameters and the measured load) inside the
-//! central half of the extent — what a gap model calls "free".
+//! central half of the extent — what a gap model calls "free". `SERIES=est|val`: δ, the true
+//! δ and the load torque every 100th sample; `RAW=val:FROM:TO`: raw encoder counts next to
+//! the truth.
 
 use hil_host::workbench::residual::Prepared;
 use jointlab_tests::hidden::{cutoff, generate_with, Family, TrialOptions};
@@ -60,11 +62,16 @@ fn main() {
                 .iter()
                 .map(|k| format!("{:.0}", 100.0 * *k as f64 / n as f64))
                 .collect();
-            if std::env::var("RAW").ok().as_deref() == Some(name) {
+            // RAW=val:11000:12500 — raw encoder counts and the truth, every 50th sample.
+            let raw = std::env::var("RAW").unwrap_or_default();
+            let mut it = raw.split(':');
+            if it.next() == Some(name) {
+                let from: usize = it.next().and_then(|x| x.parse().ok()).unwrap_or(0);
+                let to: usize = it.next().and_then(|x| x.parse().ok()).unwrap_or(rec.len());
                 let enc = std::f64::consts::TAU / 65536.0;
                 let k = usize::from(name == "val");
                 let lo = rec.load_output.as_ref().expect("load");
-                for i in (11000..12500).step_by(50) {
+                for i in (from..to.min(rec.len())).step_by(50) {
                     println!(
                         "{i:6} x1 enc {:10.1} true {:10.1}  x2 enc {:10.1} true {:10.1} (counts)",
                         rec.output[i] / enc,
