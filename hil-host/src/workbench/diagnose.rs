@@ -200,6 +200,7 @@ fn search_windowed(
         position: &t.position[w.clone()],
         velocity: &t.velocity[w.clone()],
         acceleration: &t.acceleration[w.clone()],
+        load_position: t.load().map_or(&[], |l| &l[w.clone()]),
         raw_offset: t.raw_offset + w.start,
         ..*t
     };
@@ -414,9 +415,17 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let mut notes = Vec::new();
     let mut scans = Vec::new();
     // The shape scans are independent: run them on the available cores.
+    let traj = p.trajectory();
     let kinds: Vec<EffectKind> = EffectKind::ALL
         .into_iter()
         .filter(|&k| !model.has(k))
+        .filter(|&k| match sim_plant::effects::ruled_out(k, &traj) {
+            Some(why) => {
+                untestable.push(format!("{}: {why}", k.name()));
+                false
+            }
+            None => true,
+        })
         .collect();
     let workers = std::thread::available_parallelism()
         .map(|n| n.get())

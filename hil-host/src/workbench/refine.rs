@@ -19,7 +19,7 @@
 //! one flexible effect for two true ones.
 
 use serde::Serialize;
-use sim_plant::effects::{EffectKind, Shape};
+use sim_plant::effects::{backlash, EffectKind, Shape};
 
 use super::diagnose::{self, Diagnosis, Options};
 use super::fit::{self, gram, gram_inverse};
@@ -502,7 +502,26 @@ fn set_load_time(m: &mut Model, e: usize, tau: f64) {
 /// range in steps of 10 % (the minimum in b is about ±15 % wide and moves with τ), then
 /// widths ±15 % around the best in steps of 1.5 %, then alternating golden sections on ln τ
 /// and ln b.
+///
+/// With a load position (see `backlash::measured_column`) the column does not depend on the
+/// width: the width is the measured one (`backlash::measured_width`) and only τ is searched
+/// (the same τ grid, then a golden section on ln τ).
 fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
+    let taus = [
+        0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
+    ];
+    let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
+    let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
+    if let Some(b) = backlash::measured_width(&p.trajectory()) {
+        set_backlash_width(model, e, b);
+        line_search(model, p, e, &taus, &set_load_time);
+        let tau = model.effects[e].shape.backlash_load_time;
+        if tau > 0.0 {
+            let lt = tau.ln();
+            golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 12, &set_lt);
+        }
+        return;
+    }
     let grid = sim_plant::effects::shape_grid(EffectKind::Backlash, &p.trajectory());
     let (lo, hi) = grid.iter().fold((f64::INFINITY, 0.0f64), |(l, h), s| {
         (l.min(s.backlash_width), h.max(s.backlash_width))
@@ -512,9 +531,6 @@ fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
     }
     let steps = ((hi / lo).ln() / 1.1f64.ln()).ceil() as i32;
     let widths: Vec<f64> = (0..=steps).map(|k| lo * 1.1f64.powi(k)).collect();
-    let taus = [
-        0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
-    ];
     grid_search(
         model,
         p,
@@ -527,8 +543,6 @@ fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
     let b0 = model.effects[e].shape.backlash_width;
     let fine: Vec<f64> = (-10..=10).map(|k| b0 * 1.015f64.powi(k)).collect();
     line_search(model, p, e, &fine, &set_backlash_width);
-    let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
-    let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
     for _ in 0..2 {
         let tau = model.effects[e].shape.backlash_load_time;
         if tau > 0.0 {

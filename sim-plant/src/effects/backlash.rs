@@ -101,19 +101,97 @@ pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: 
     out
 }
 
-/// `[−(δ̈ + δ̇/τ)]` of the low-passed [`gap_deflection`].
+/// The backlash column `−(δ̈ + δ̇/τ)`: of the deflection δ = x_motor − x_load *measured*
+/// (both positions low-passed as the motion) when the trajectory has a load position, else of
+/// the low-passed [`gap_deflection`] estimated from the motor's motion alone.
+///
+/// With a load encoder the column is the rigid model's exact remainder whatever the load
+/// does — the motor encoder alone cannot say where the load sits in the gap while a light
+/// motor chatters against it (`tests/examples/backlash_probe.rs`), the load encoder measures
+/// it — so the width does not shape it (the width a fit reports is [`measured_width`]). The
+/// same law holds for *any* motor–load pair, a compliant shaft too: what makes the deflection
+/// a gap is checked separately ([`ruled_out`], used by the diagnosis).
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let tau = shape.backlash_load_time;
-    let delta = gap_deflection(
-        &traj.position[..n],
-        &traj.velocity[..n],
-        shape.backlash_width,
-        tau,
-        traj.dt,
-    );
-    let d = traj.lowpass(&delta);
-    let dt = traj.dt;
+    let d = match traj.load() {
+        Some(load) => measured_deflection(&traj.position[..n], load),
+        None => traj.lowpass(&gap_deflection(
+            &traj.position[..n],
+            &traj.velocity[..n],
+            shape.backlash_width,
+            tau,
+            traj.dt,
+        )),
+    };
+    vec![deflection_column(&d, tau, traj.dt)]
+}
+
+/// Why the record rules a backlash out, if it does: it has a load position whose deflection
+/// shows no gap ([`shows_gap`]). The measured-deflection column (see [`fingerprint`]) is
+/// Newton's law for any motor–load pair, so without this test it explains a compliant
+/// transmission as well as a gap: on the compliance trials with a load encoder it took rank 1
+/// from compliance in 24 of 24.
+pub fn ruled_out(traj: &Trajectory) -> Option<&'static str> {
+    let n = traj.len();
+    let load = traj.load()?;
+    (!shows_gap(&measured_deflection(&traj.position[..n], load))).then_some(
+        "the load-side position shows no gap (the deflection lingers mid-range, as a \
+         spring's or a rigid joint's encoder noise does, instead of dwelling at two edges)",
+    )
+}
+
+/// Whether a measured deflection `d` looks like a gap: it spends at most [`GAP_CENTRE_MAX`] of
+/// the time in the central [`GAP_CENTRE`] of its extent. A load in a gap is pushed at one
+/// edge or the other and the gap is crossed quickly (the light motor alone accelerates
+/// through it), so the low-passed δ piles up at two levels; a spring's deflection follows the
+/// transmitted torque through zero and lingers there, and a rigid joint's δ is encoder noise,
+/// Gaussian about its mean. Measured with `tests/examples/load_encoder_probe.rs` (40 trials
+/// each, both records): backlash 76 of 80 records ≤ 8 % in the central 40 % (the others 13,
+/// 29, 46, 71 %: tiny gaps of 1.7–2.8 counts, or a loop rattling across the gap faster than
+/// the cut-off, whose low-passed δ then sits mid-gap), compliance 27–97 %, null trials
+/// 40–88 %. This keeps a compliant transmission's deflection from being read as a gap.
+pub fn shows_gap(d: &[f64]) -> bool {
+    let Some((lo, hi)) = extent(d) else {
+        return false;
+    };
+    let (c, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    if half <= 0.0 {
+        return false;
+    }
+    let centre = d
+        .iter()
+        .filter(|x| (*x - c).abs() < GAP_CENTRE * half)
+        .count();
+    (centre as f64) <= GAP_CENTRE_MAX * d.len() as f64
+}
+
+/// Central part of the measured extent (a fraction of it) a gap's deflection crosses quickly.
+pub const GAP_CENTRE: f64 = 0.4;
+
+/// Largest share of the samples a gap's deflection spends in the [`GAP_CENTRE`].
+pub const GAP_CENTRE_MAX: f64 = 0.15;
+
+/// δ = motor − load position, sample by sample.
+fn measured_deflection(motor: &[f64], load: &[f64]) -> Vec<f64> {
+    motor.iter().zip(load).map(|(x1, x2)| x1 - x2).collect()
+}
+
+/// The 1st and 99th percentiles of `d` (None if empty): its extent without single noise
+/// samples and the filter's overshoot at impacts.
+fn extent(d: &[f64]) -> Option<(f64, f64)> {
+    if d.is_empty() {
+        return None;
+    }
+    let mut s = d.to_vec();
+    s.sort_by(f64::total_cmp);
+    let q = |p: f64| s[((s.len() - 1) as f64 * p).round() as usize];
+    Some((q(0.01), q(0.99)))
+}
+
+/// `−(ẍ + ẋ/τ)` by central differences (τ = 0: no viscous term), edges copied.
+fn deflection_column(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
+    let n = d.len();
     let mut col = vec![0.0; n];
     for i in 1..n.saturating_sub(1) {
         let acc = (d[i + 1] - 2.0 * d[i] + d[i - 1]) / (dt * dt);
@@ -124,7 +202,21 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         col[0] = col[1];
         col[n - 1] = col[n - 2];
     }
-    vec![col]
+    col
+}
+
+/// The gap's width as the load encoder measures it (None without a load position): the
+/// spread between the 1st and 99th percentiles of δ = motor − load (low-passed). A gap's δ
+/// dwells at ±b/2 whenever the motor pushes (a stiff contact's compression is far below an
+/// encoder count), so its extent is the gap; the percentiles keep single noise samples and
+/// the filter's overshoot at impacts out of it. A fit with a load position reports it as the
+/// width (the column itself is built from the measured deflection, see
+/// [`measured_column`]).
+pub fn measured_width(traj: &Trajectory) -> Option<f64> {
+    let n = traj.len();
+    let load = traj.load()?;
+    let (lo, hi) = extent(&measured_deflection(&traj.position[..n], load))?;
+    Some((hi - lo).max(0.0))
 }
 
 /// Load time constants of the shape grid (s; 0 = no decay), besides the ones scaled on the
@@ -162,9 +254,15 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     if let Some(t) = rigid_time_constant(traj) {
         taus.extend(LOAD_FRACTIONS.iter().map(|f| f * t));
     }
+    // With a load position the width is measured and does not shape the column: one per τ
+    // (a grid over widths would only multiply the search's multiplicity).
+    let widths = match measured_width(traj) {
+        Some(b) => vec![b],
+        None => log_space(3e-4 * span, 0.1 * span, 7),
+    };
     let mut out = Vec::new();
     for tau in taus {
-        for b in log_space(3e-4 * span, 0.1 * span, 7) {
+        for &b in &widths {
             out.push(Shape {
                 backlash_width: b,
                 backlash_load_time: tau,
@@ -178,16 +276,18 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
 /// Around the best grid shape: widths within ±60 % (steps of 8 %; the coarse grid's step is
 /// ×2.6 and the fit's minimum in the width only about ±15 % wide) and load time constants
 /// within a factor 2 (steps of 20 %; from "no decay": the long ones above the grid's 2.5 s).
-pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
+/// With a load position only τ (the width is measured).
+pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
     let (b0, t0) = (best.backlash_width, best.backlash_load_time);
     let taus: Vec<f64> = if t0 > 0.0 {
         (-4..=4).map(|k| t0 * 1.2f64.powi(k)).collect()
     } else {
         vec![4.0, 6.3, 10.0, 0.0]
     };
+    let ks = if traj.load().is_some() { 0..=0 } else { -6..=6 };
     let mut out = Vec::new();
     for &tau in &taus {
-        for k in -6..=6 {
+        for k in ks.clone() {
             out.push(Shape {
                 backlash_width: b0 * 1.08f64.powi(k),
                 backlash_load_time: tau,
@@ -201,6 +301,106 @@ pub fn refine_grid(_traj: &Trajectory, best: &Shape) -> Vec<Shape> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A two-mass joint, any transmission: motor x1, load x2, u = J1·ẍ1 + J2·ẍ2 + b·ẋ2. The
+    /// rigid model J·ẍ1 + b·ẋ1 leaves exactly J2·(−(δ̈ + δ̇/τ)), τ = J2/b, with δ = x1 − x2 —
+    /// the column with a load position, whatever the width in the shape.
+    #[test]
+    fn measured_column_is_the_rigid_models_exact_remainder() {
+        let (n, dt) = (4000, 1e-3);
+        let (j1, j2, b) = (0.003, 0.02, 0.04);
+        let x1: Vec<f64> = (0..n)
+            .map(|i| (2.0 * i as f64 * dt).sin() + 0.3 * (7.0 * i as f64 * dt).sin())
+            .collect();
+        let x2: Vec<f64> = (0..n)
+            .map(|i| x1[i] - 1e-3 * (13.0 * i as f64 * dt).sin())
+            .collect();
+        let d1 = |x: &[f64], i: usize| (x[i + 1] - x[i - 1]) / (2.0 * dt);
+        let d2 = |x: &[f64], i: usize| (x[i + 1] - 2.0 * x[i] + x[i - 1]) / (dt * dt);
+        let v: Vec<f64> = (0..n).map(|i| if i == 0 || i == n - 1 { 0.0 } else { d1(&x1, i) }).collect();
+        let a: Vec<f64> = (0..n).map(|i| if i == 0 || i == n - 1 { 0.0 } else { d2(&x1, i) }).collect();
+        let u = vec![0.0; n];
+        let traj = Trajectory {
+            load_position: &x2,
+            ..Trajectory::unfiltered(dt, &u, &x1, &v, &a)
+        };
+        for width in [1e-4, 0.5] {
+            let shape = Shape {
+                backlash_width: width,
+                backlash_load_time: j2 / b,
+                ..Shape::default()
+            };
+            let col = &fingerprint(&traj, &shape)[0];
+            for (i, c) in col.iter().enumerate().take(n - 1).skip(1) {
+                let u = j1 * d2(&x1, i) + j2 * d2(&x2, i) + b * d1(&x2, i);
+                let r = u - (j1 + j2) * d2(&x1, i) - b * d1(&x1, i);
+                let err = (r - j2 * c).abs();
+                assert!(err < 1e-9 * (1.0 + r.abs()), "{i}: {r} vs {}", j2 * c);
+            }
+        }
+        // Without a load position the play operator is used: another column.
+        let plain = Trajectory::unfiltered(dt, &u, &x1, &v, &a);
+        assert!(plain.load().is_none() && traj.load().is_some());
+        let shape = Shape::default();
+        assert_ne!(fingerprint(&plain, &shape), fingerprint(&traj, &shape));
+    }
+
+    /// A gap's deflection dwells at two edges and is measured as the gap's width; a spring's
+    /// (sinusoidal) deflection and a rigid joint's encoder noise linger mid-range and rule a
+    /// backlash out.
+    #[test]
+    fn a_gap_is_told_from_a_spring_and_from_noise() {
+        let n = 20_000;
+        let b = 2e-3;
+        // Pushed at one edge or the other, crossing in 5 ms every 0.5 s, plus a little noise.
+        let noise = |i: usize| 2e-5 * ((i * 7919 % 101) as f64 / 50.0 - 1.0);
+        let gap: Vec<f64> = (0..n)
+            .map(|i| {
+                let ph = i % 1000;
+                let edge = if ph < 500 { 0.5 * b } else { -0.5 * b };
+                let cross = match ph {
+                    0..5 => -0.5 * b + b * ph as f64 / 5.0,
+                    500..505 => 0.5 * b - b * (ph - 500) as f64 / 5.0,
+                    _ => edge,
+                };
+                cross + noise(i) + 0.7
+            })
+            .collect();
+        let spring: Vec<f64> = (0..n).map(|i| b * (i as f64 * 0.01).sin()).collect();
+        let rigid: Vec<f64> = (0..n)
+            .map(|i| {
+                let u1 = ((i * 7919 + 13) % 1009) as f64 / 1009.0;
+                let u2 = ((i * 104_729 + 7) % 1013) as f64 / 1013.0;
+                1e-5 * (u1 + u2 - 1.0)
+            })
+            .collect();
+        assert!(shows_gap(&gap));
+        assert!(!shows_gap(&spring));
+        assert!(!shows_gap(&rigid));
+        let zero = vec![0.0; n];
+        let traj = |load: &[f64]| -> (Option<f64>, bool) {
+            let t = Trajectory {
+                load_position: load,
+                ..Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero)
+            };
+            (measured_width(&t), ruled_out(&t).is_some())
+        };
+        // δ = motor − load = −load here.
+        let neg = |x: &[f64]| -> Vec<f64> { x.iter().map(|v| -v).collect() };
+        let (w, out) = traj(&neg(&gap));
+        assert!(!out);
+        assert!((w.expect("load") / b - 1.0).abs() < 0.05, "{w:?}");
+        assert!(traj(&neg(&spring)).1 && traj(&neg(&rigid)).1);
+        let none = Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero);
+        assert!(measured_width(&none).is_none() && ruled_out(&none).is_none());
+        // One width per τ in the grid with a load position.
+        let t = Trajectory {
+            load_position: &gap,
+            ..Trajectory::unfiltered(1e-3, &zero, &zero, &zero, &zero)
+        };
+        assert!(shape_grid(&t).iter().all(|s| s.backlash_width == shape_grid(&t)[0].backlash_width));
+        assert!(refine_grid(&t, &shape_grid(&t)[0]).len() <= 9);
+    }
 
     /// The shape grid's time-constant scale is J/b of the rigid fit, whatever the Coulomb
     /// level and offset riding on the input.

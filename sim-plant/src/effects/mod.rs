@@ -66,6 +66,12 @@ pub struct Trajectory<'a> {
     /// (the smoothing differentiator's); 0 = none. Fingerprints built from `raw_input` apply it
     /// so that they see the bandwidth the residual saw.
     pub lowpass_hz: f64,
+    /// Load-side position (an output encoder), sample for sample with `position` and processed
+    /// like it (the same zero-phase low-pass, the same window); empty when the record has
+    /// none. With it the motor-minus-load deflection δ = position − load_position is measured
+    /// instead of inferred from the motor's motion (backlash uses it, see
+    /// `backlash::fingerprint`).
+    pub load_position: &'a [f64],
 }
 
 impl<'a> Trajectory<'a> {
@@ -89,7 +95,14 @@ impl<'a> Trajectory<'a> {
             raw_offset: 0,
             raw_acceleration: &[],
             lowpass_hz: 0.0,
+            load_position: &[],
         }
+    }
+
+    /// The measured load position over the trajectory, if the record has one covering it.
+    pub fn load(&self) -> Option<&[f64]> {
+        let n = self.len();
+        (n > 0 && self.load_position.len() >= n).then(|| &self.load_position[..n])
     }
 
     /// Number of samples (the shortest of the four series).
@@ -430,6 +443,16 @@ pub fn initial_state(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> Vec<
     match kind {
         EffectKind::Compliance => compliance::initial_state(traj, shape),
         _ => Vec::new(),
+    }
+}
+
+/// Why the record itself rules `kind` out, if it does (then it is not a candidate): a load
+/// position whose deflection shows no gap rules out a backlash (`backlash::ruled_out`).
+/// `None` for the other effects and for records without such evidence.
+pub fn ruled_out(kind: EffectKind, traj: &Trajectory) -> Option<&'static str> {
+    match kind {
+        EffectKind::Backlash => backlash::ruled_out(traj),
+        _ => None,
     }
 }
 

@@ -10,11 +10,14 @@
 //! `--fails` lists (on stderr) the single-effect trials at ρ ≥ 1 that missed rank 1 or the
 //! refit-to-floor bound, with the seed and target ρ to replay them with `one`.
 //! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
+//! `--load-encoder` records a load-side encoder too and passes it to the workbench (see
+//! `TrialOptions::load_encoder`; same seeds, same draws, same floors); also for `one`
+//! (`hidden-trials one FAMILY SEED RHO --load-encoder`).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use jointlab_tests::hidden::{run, Family, Outcome};
+use jointlab_tests::hidden::{run_with, Family, Outcome, TrialOptions};
 
 fn main() {
     // Flags (for quick iteration): `--family a,b` runs only those single-effect families (no
@@ -23,6 +26,7 @@ fn main() {
     let mut only: Option<Vec<String>> = None;
     let (mut singles, mut with_nulls, mut with_pairs) = (true, true, true);
     let mut show_fails = false;
+    let mut opts = TrialOptions::default();
     let mut positional = Vec::new();
     let mut it = raw.iter();
     while let Some(a) = it.next() {
@@ -37,6 +41,7 @@ fn main() {
             "--pairs-only" => (singles, with_nulls) = (false, false),
             "--nulls-only" => (singles, with_pairs) = (false, false),
             "--fails" => show_fails = true,
+            "--load-encoder" => opts.load_encoder = true,
             _ => positional.push(a.clone()),
         }
     }
@@ -46,13 +51,21 @@ fn main() {
     let rhos = [0.5, 1.0, 2.0, 4.0];
     // `hidden-trials one FAMILY SEED RHO`: run and print a single trial (debugging aid).
     if std::env::args().nth(1).as_deref() == Some("one") {
-        let a: Vec<String> = std::env::args().skip(2).collect();
+        let a: Vec<String> = std::env::args()
+            .skip(2)
+            .filter(|a| a != "--load-encoder")
+            .collect();
         let fam: Vec<Family> = Family::ALL
             .iter()
             .copied()
             .filter(|f| a[0].split('+').any(|n| n == f.name()))
             .collect();
-        let o = run(a[1].parse().unwrap_or(1), &fam, a[2].parse().unwrap_or(1.0));
+        let o = run_with(
+            a[1].parse().unwrap_or(1),
+            &fam,
+            a[2].parse().unwrap_or(1.0),
+            opts,
+        );
         println!("{o:?}");
         return;
     }
@@ -105,7 +118,7 @@ fn main() {
                             break;
                         }
                         let (_, seed, fams, rho) = &jobs[k];
-                        out.push((k, run(*seed, fams, *rho)));
+                        out.push((k, run_with(*seed, fams, *rho, opts)));
                         if k.is_multiple_of(50) {
                             eprintln!(
                                 "{k}/{} trials ({:.0} s)",
@@ -287,6 +300,9 @@ fn main() {
         );
     }
     println!("unstable (skipped) trials: {unstable}");
-    println!("trials per family: {trials}; workers: {workers}");
+    println!(
+        "trials per family: {trials}; workers: {workers}; load encoder: {}",
+        if opts.load_encoder { "yes" } else { "no" }
+    );
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
 }

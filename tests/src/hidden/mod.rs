@@ -113,6 +113,9 @@ struct Excitation {
     dither: Vec<f64>,
     input_noise: Vec<f64>,
     sensor_noise: Vec<f64>,
+    /// Noise of a load-side encoder (same kind and level as the motor encoder's), drawn from a
+    /// stream of its own (see [`draw`]) so that the motor-only trials are unchanged.
+    load_sensor_noise: Vec<f64>,
     kp: f64,
     kd: f64,
     feedforward: bool,
@@ -136,6 +139,18 @@ pub const N: usize = 20_000;
 /// Sample period.
 pub const DT: f64 = 1e-3;
 const ENCODER: f64 = std::f64::consts::TAU / 65_536.0;
+/// Seed offset of the load encoder's noise stream.
+const LOAD_ENCODER_STREAM: u64 = 0x10AD_E4C0_DE00_0000;
+
+/// How a trial is recorded, beyond its families and strength.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TrialOptions {
+    /// Record a load-side (output) encoder too and pass it as `Recording::load_output`: the
+    /// same 2¹⁶ counts/rev quantisation and the same sensor noise level as the motor encoder
+    /// (an independent draw), logged at the same instants. Off by default: the trials'
+    /// recordings have the motor encoder only.
+    pub load_encoder: bool,
+}
 
 fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     (rng.random_range(lo.ln()..hi.ln())).exp()
@@ -192,6 +207,7 @@ fn excitation(rng: &mut ChaCha8Rng, j: f64, noise_u: f64) -> Excitation {
         dither: (0..n).map(|_| dither_level * dn.sample(rng)).collect(),
         input_noise: (0..n).map(|_| noise_u * dn.sample(rng)).collect(),
         sensor_noise: (0..n).map(|_| 0.2 * ENCODER * dn.sample(rng)).collect(),
+        load_sensor_noise: Vec::new(),
         kp: j * wc * wc,
         kd: 2.0 * 0.7 * j * wc,
         feedforward,
@@ -209,8 +225,17 @@ pub fn draw(seed: u64) -> Draw {
     let shape = rng.random_range(0.0..1.0);
     let phase = rng.random_range(0.0..std::f64::consts::TAU);
     let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    let est = excitation(&mut rng, j1 + j2, noise_u);
-    let val = excitation(&mut rng, j1 + j2, noise_u);
+    let mut est = excitation(&mut rng, j1 + j2, noise_u);
+    let mut val = excitation(&mut rng, j1 + j2, noise_u);
+    // The load encoder's noise comes from a separate stream: drawing it from `rng` would
+    // shift every later draw and change the default (motor-encoder-only) trials.
+    let mut lrng = ChaCha8Rng::seed_from_u64(seed ^ LOAD_ENCODER_STREAM);
+    let dn = Normal::new(0.0, 1.0).expect("normal");
+    for e in [&mut est, &mut val] {
+        e.load_sensor_noise = (0..e.sensor_noise.len())
+            .map(|_| 0.2 * ENCODER * dn.sample(&mut lrng))
+            .collect();
+    }
     Draw {
         base,
         shape,
@@ -310,17 +335,18 @@ impl NoiseAt {
 
 /// Simulate one record of plant `p` under excitation `e`.
 fn record(p: &Plant, e: &Excitation, noise: NoiseAt, label: &str) -> Recording {
-    record_with_load(p, e, noise, label).0
+    record_with_load(p, e, noise, label, false).0
 }
 
 /// [`record`] and the truth's load and motor positions at the logged samples (never shown to
-/// the workbench: the trials' recordings have the motor encoder only; probes compare with
-/// them).
+/// the workbench: probes compare with them). With `load_encoder` the recording also holds the
+/// load position as a load-side encoder reports it (quantised, with its own sensor noise).
 fn record_with_load(
     p: &Plant,
     e: &Excitation,
     noise: NoiseAt,
     label: &str,
+    load_encoder: bool,
 ) -> (Recording, [Vec<f64>; 2]) {
     let mut ctl = Pd {
         e,
@@ -358,6 +384,13 @@ fn record_with_load(
             &[]
         },
     );
+    let load_output = load_encoder.then(|| {
+        m.load_position
+            .iter()
+            .zip(&e.load_sensor_noise)
+            .map(|(x, n)| ENCODER * ((x + n) / ENCODER).round())
+            .collect()
+    });
     let rec = Recording {
         path: label.into(),
         input: match noise {
@@ -371,7 +404,7 @@ fn record_with_load(
         },
         time: m.time,
         output: m.motor_position,
-        load_output: None,
+        load_output,
         dt: DT,
         units: ("N·m".into(), "rad".into()),
         columns: Columns::new("torque_Nm", "q_rad"),
@@ -435,6 +468,18 @@ pub struct Trial {
 /// the drawn loop is unstable with the effect (a delay or backlash can destabilise the PD
 /// loop; such runs are not a diagnosis problem and are counted separately).
 pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial> {
+    generate_with(seed, families, target_rho, TrialOptions::default())
+}
+
+/// [`generate`] with recording options (a load encoder). Only the trial's estimation and
+/// validation records change; the strength calibration and the noise floor (twins, baseline
+/// fits) do not use a load position and are the same as without the options.
+pub fn generate_with(
+    seed: u64,
+    families: &[Family],
+    target_rho: f64,
+    opts: TrialOptions,
+) -> Option<Trial> {
     let d = draw(seed);
     let mut base = d.base;
     if families.contains(&Family::Stribeck) {
@@ -509,10 +554,20 @@ pub fn generate(seed: u64, families: &[Family], target_rho: f64) -> Option<Trial
             twin.join(", ")
         );
     }
-    let (est, [est_load, est_motor]) =
-        record_with_load(&plant, &d.est, noise, &format!("hidden seed {seed} est"));
-    let (val, [val_load, val_motor]) =
-        record_with_load(&plant, &d.val, noise, &format!("hidden seed {seed} val"));
+    let (est, [est_load, est_motor]) = record_with_load(
+        &plant,
+        &d.est,
+        noise,
+        &format!("hidden seed {seed} est"),
+        opts.load_encoder,
+    );
+    let (val, [val_load, val_motor]) = record_with_load(
+        &plant,
+        &d.val,
+        noise,
+        &format!("hidden seed {seed} val"),
+        opts.load_encoder,
+    );
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
     let bounded = |rec: &Recording| {
@@ -578,7 +633,17 @@ impl Outcome {
 /// Run one trial: diagnose; for single-effect trials `fit --add <truth>` and score validation;
 /// for pairs `diagnose --auto`. `None` if the trial's loop was unstable.
 pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
-    let t = generate(seed, families, target_rho)?;
+    run_with(seed, families, target_rho, TrialOptions::default())
+}
+
+/// [`run`] with recording options (see [`TrialOptions`]).
+pub fn run_with(
+    seed: u64,
+    families: &[Family],
+    target_rho: f64,
+    opts: TrialOptions,
+) -> Option<Outcome> {
+    let t = generate_with(seed, families, target_rho, opts)?;
     let pe = Prepared::new(&t.est, cutoff());
     let pv = Prepared::new(&t.val, cutoff());
     let mut model = start_model(families);
@@ -624,7 +689,7 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
                     let sh = &e.shape;
                     eprintln!(
                         "  {}: sign ε {:.3e}, lead {:.2e} s; mode {:.2} Hz ζ {:.3} J1 {:.2e} \
-                         ratio {:.2}; quantum {:.4e}",
+                         ratio {:.2}; quantum {:.4e}; gap {:.4e} (measured {:.4e} / {:.4e}) τ {:.3}",
                         e.kind.name(),
                         sh.sign_epsilon,
                         sh.sign_lead,
@@ -632,7 +697,13 @@ pub fn run(seed: u64, families: &[Family], target_rho: f64) -> Option<Outcome> {
                         sh.compliance_damping,
                         sh.compliance_near_inertia,
                         sh.compliance_ratio,
-                        sh.quantum
+                        sh.quantum,
+                        sh.backlash_width,
+                        sim_plant::effects::backlash::measured_width(&pe.trajectory())
+                            .unwrap_or(f64::NAN),
+                        sim_plant::effects::backlash::measured_width(&pv.trajectory())
+                            .unwrap_or(f64::NAN),
+                        sh.backlash_load_time
                     );
                 }
             }
