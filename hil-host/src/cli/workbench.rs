@@ -58,9 +58,14 @@ pub struct DataArgs {
     /// Output (position) column.
     #[arg(long)]
     pub output: String,
-    /// Optional load-side position column.
+    /// Optional load-side position column (an output encoder): backlash is then fitted on the
+    /// measured deflection output − load instead of an estimate from the output alone.
     #[arg(long)]
     pub load_output: Option<String>,
+    /// Gain from the load column to the output column's axis, e.g. the gear ratio N when the
+    /// load encoder is at the joint's output and --output is the motor shaft.
+    #[arg(long, default_value_t = 1.0, requires = "load_output")]
+    pub load_gain: f64,
     /// Time column.
     #[arg(long, default_value = "time_s")]
     pub time: String,
@@ -83,6 +88,7 @@ impl DataArgs {
             load_output: self.load_output.clone(),
             time: self.time.clone(),
             input_gain: self.input_gain,
+            load_gain: self.load_gain,
         }
     }
     fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {

@@ -126,6 +126,10 @@ pub struct Columns {
     /// Gain applied to the input column (e.g. the drive gain `gtau` in N/V), so the model sees
     /// a force/torque.
     pub input_gain: f64,
+    /// Gain from the load column to the output column's axis: the gear ratio N when the load
+    /// encoder sits at the output and the output column is the motor shaft. The deflection
+    /// motor − load is only meaningful with both on one axis.
+    pub load_gain: f64,
 }
 
 impl Columns {
@@ -137,6 +141,7 @@ impl Columns {
             load_output: None,
             time: "time_s".into(),
             input_gain: 1.0,
+            load_gain: 1.0,
         }
     }
 }
@@ -208,7 +213,10 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     }
     let input = scale(1, us * cols.input_gain);
     let output = scale(2, ys);
-    let load_out = cols.load_output.as_deref().map(|c| scale(3, unit_of(c).1));
+    let load_out = cols
+        .load_output
+        .as_deref()
+        .map(|c| scale(3, unit_of(c).1 * cols.load_gain));
     if time.len() < 50 {
         return Err(DataError::TooShort {
             file,
@@ -306,4 +314,39 @@ fn read_numeric(path: &Path, names: &[&str]) -> Result<(Vec<Vec<f64>>, Vec<u64>)
         lines.push(line);
     }
     Ok((out, lines))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A geared load encoder is brought onto the output column's axis by `load_gain`, after
+    /// its own unit suffix (degrees here), and the other columns are untouched.
+    #[test]
+    fn load_column_is_scaled_by_its_unit_and_the_load_gain() {
+        let dir = std::env::temp_dir().join(format!("jointlab-data-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join("geared.csv");
+        let mut csv = String::from("time_s,torque_Nm,q_rad,out_deg\n");
+        for k in 0..60 {
+            let t = k as f64 * 1e-3;
+            csv += &format!("{t},{},{},{}\n", 0.5, 30.0 * t, t.to_degrees());
+        }
+        std::fs::write(&path, csv).expect("write csv");
+        let cols = Columns {
+            load_output: Some("out_deg".into()),
+            load_gain: 30.0,
+            ..Columns::new("torque_Nm", "q_rad")
+        };
+        let rec = load(&path, &cols).expect("load");
+        std::fs::remove_dir_all(&dir).ok();
+        let load = rec.load_output.as_ref().expect("load column");
+        for (k, (&q, &l)) in rec.output.iter().zip(load).enumerate() {
+            assert!(
+                (q - l).abs() < 1e-12,
+                "sample {k}: motor {q} vs geared load {l}"
+            );
+        }
+        assert!(rec.input.iter().all(|&u| u == 0.5));
+    }
 }
