@@ -8,6 +8,14 @@
 //! `u = J·a + b·v + θ·F` (bias-compensated J) on the estimation record, scored on validation
 //! (RMS over the trial's floors). Velocity sources: the workbench's (40 Hz zero-phase) motor
 //! velocity, and the truth's load velocity (central difference at 1 kHz; probes only).
+//! Variants: the truth's exact friction (from the load's equation of motion, the reference),
+//! static curves, LuGre states driven by either velocity (z_s scaled), the true stick state,
+//! hold columns (u, or the balancing torque u − J·a − b·v), wider-band velocities.
+//!
+//! Environment: `WB_ONLY=1` only the workbench's own refit (val/floor and fitted shapes);
+//! `DUMP=1` the workbench refit's validation residual by |v| band and its worst 50 ms windows,
+//! `RANGE=a:b` (`STRIDE=k`) the samples with the truth's band-limited friction beside the
+//! model's.
 
 use hil_host::workbench::diff;
 use hil_host::workbench::fit;
@@ -29,6 +37,8 @@ struct Rec {
     v_true: Vec<f64>,
     /// Raw input, whole record.
     u: Vec<f64>,
+    /// Raw encoder (whole record).
+    x: Vec<f64>,
     /// Workbench acceleration, whole record.
     a_meas: Vec<f64>,
     /// Truth friction (load side, from the load's equation), whole record, unfiltered.
@@ -203,6 +213,7 @@ fn probe(seed: u64, t: &Trial) {
         p: Prepared::new(r, cutoff()),
         v_meas: diff::differentiate(&r.output, dt, fc).velocity,
         a_meas: diff::differentiate(&r.output, dt, fc).acceleration,
+        x: r.output.clone(),
         v_true: central(load, dt),
         u: r.input.clone(),
     })
@@ -335,6 +346,27 @@ fn probe(seed: u64, t: &Trial) {
                 })
                 .collect()
         });
+    }
+    // Friction nonlinearity on a wider-band velocity (hold window on it too).
+    for fcv in [40.0, 80.0, 120.0, 200.0] {
+        for k in [1.0, 2.0, 4.0] {
+            report(&format!("hold vh×{k} + static(v@{fcv}Hz)"), &|r| {
+                let d = diff::differentiate(&r.x, dt, fcv);
+                let vh = k * recs[0].p.stick_velocity * (fcv / 40.0f64).powf(1.5);
+                (0..r.u.len())
+                    .map(|i| {
+                        let v = d.velocity[i];
+                        let w = sim_plant::effects::stribeck::stick_window_mean(
+                            v,
+                            d.acceleration[i],
+                            dt,
+                            vh,
+                        );
+                        (1.0 - w) * v.signum() * g(pl, v) + w * r.u[i]
+                    })
+                    .collect()
+            });
+        }
     }
     // Hold of the balancing torque: (1 − w)·static + w·(u − J·a − b·v) (truth J, b).
     for k in [0.5, 1.0, 2.0, 4.0, 8.0] {
