@@ -53,7 +53,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
             .map(|(&v, &a)| {
                 let step = 0.5 * (1.0 + smooth_sign(v + lead * a, eps));
                 if vh > 0.0 {
-                    (1.0 - super::stribeck::stick_window(v, vh)) * step
+                    (1.0 - super::stribeck::stick_window_mean(v, a, traj.dt, vh)) * step
                 } else {
                     step
                 }

@@ -48,7 +48,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         .map(|(&v, &a)| {
             let s = smooth_sign(v + lead * a, eps);
             if vh > 0.0 {
-                (1.0 - super::stribeck::stick_window(v, vh)) * s
+                (1.0 - super::stribeck::stick_window_mean(v, a, traj.dt, vh)) * s
             } else {
                 s
             }
