@@ -1074,7 +1074,8 @@ fn choose(
             continue;
         }
         let b = bic(&m, p);
-        if !(b < current) {
+        // (NaN on either side: not an improvement)
+        if b.partial_cmp(&current) != Some(std::cmp::Ordering::Less) {
             continue;
         }
         if best.as_ref().is_none_or(|x| b < x.0) {
@@ -1302,7 +1303,8 @@ mod tests {
         let p = Prepared::new(&rec, Some(40.0));
         // The test is only meaningful where plain least squares would be visibly biased.
         let a2 = p.acceleration.iter().map(|a| a * a).sum::<f64>() / p.len() as f64;
-        let acc_noise = p.position_noise_var * super::super::diff::acceleration_noise_gain(40.0, dt).powi(2);
+        let acc_noise =
+            p.position_noise_var * super::super::diff::acceleration_noise_gain(40.0, dt).powi(2);
         assert!(acc_noise / a2 > 0.02, "{}", acc_noise / a2);
         let mut m = Model::baseline();
         m.add(
