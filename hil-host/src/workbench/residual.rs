@@ -170,13 +170,24 @@ impl Prepared {
 /// ringing tail of a resonant column.
 const PROBE_LEAD: usize = 256;
 
+/// Longest window of the probe, in samples after its impulse: the differentiator's response
+/// is ~100 samples long, and a lightly damped compliance mode rings for 1/(ζ₂ω₂) — at
+/// ζ₂ω₂ = 0.3 s⁻¹ the energy left after 2¹⁴ samples at 1 kHz is e⁻¹⁰. Longer records do not
+/// need a longer probe, and a probe as long as a 10⁵-sample record was a full extra
+/// differentiation in every [`Prepared::new`].
+const PROBE_SPAN: usize = 1 << 14;
+
 /// The preparation of a unit impulse of the raw position at [`PROBE_LEAD`] samples into the
-/// window (see [`Prepared::noise_probe`]); `None` when the window is shorter than twice that.
+/// window (see [`Prepared::noise_probe`]), on a record as long as the data's but at most
+/// [`PROBE_SPAN`] samples past the impulse; `None` when the window is shorter than twice
+/// [`PROBE_LEAD`].
 fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64) -> Option<Prepared> {
     let n = len.checked_sub(2 * edge)?;
     if n < 2 * PROBE_LEAD || dt <= 0.0 {
         return None;
     }
+    let n = n.min(PROBE_LEAD + PROBE_SPAN);
+    let len = n + 2 * edge;
     let mut x = vec![0.0; len];
     x[edge + PROBE_LEAD] = 1.0;
     let d = diff::differentiate(&x, dt, fc);
@@ -807,6 +818,22 @@ mod tests {
     /// The noise matrix of the baseline model: the inertia's diagonal is the acceleration
     /// noise the differentiator's gain predicts, the velocity's is its own, and the two are
     /// uncorrelated (an even and an odd response).
+    /// The probe stops [`PROBE_SPAN`] samples after its impulse on a long record, and its
+    /// acceleration response still carries the differentiator's whole noise gain.
+    #[test]
+    fn noise_probe_is_capped_and_complete() {
+        let (n, dt, fc) = (100_000, 1e-3, 40.0);
+        let edge = diff::edge_samples(dt, fc);
+        let probe = noise_probe(n, edge, dt, fc).expect("probe");
+        assert_eq!(probe.len(), PROBE_LEAD + PROBE_SPAN);
+        assert_eq!(probe.raw_acceleration.len(), probe.len() + 2 * edge);
+        let e: f64 = probe.acceleration.iter().map(|a| a * a).sum();
+        let ga = diff::acceleration_noise_gain(fc, dt).powi(2);
+        assert!((e / ga - 1.0).abs() < 1e-6, "{e} vs {ga}");
+        // A window shorter than twice the lead holds no probe.
+        assert!(noise_probe(2 * edge + PROBE_LEAD, edge, dt, fc).is_none());
+    }
+
     #[test]
     fn noise_gram_of_the_baseline() {
         let n = 4000;
