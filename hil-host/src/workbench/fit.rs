@@ -155,22 +155,22 @@ pub fn least_squares_compensated(
     y: &[f64],
     noise: &[f64],
 ) -> Result<LsFit, FitError> {
-    let p = cols.len();
-    let g = gram(cols);
-    let n = DMatrix::from_fn(p, p, |i, j| {
-        if i == j {
-            noise
-                .get(j)
-                .copied()
-                .unwrap_or(0.0)
-                // max/min, not clamp: a non-finite Gram matrix is the solver's error to report.
-                .max(0.0)
-                .min(0.5 * g[(j, j)])
-        } else {
-            0.0
-        }
-    });
-    least_squares_noise(cols, y, &n)
+    solve_compensated(cols, y, |g| {
+        DMatrix::from_fn(g.nrows(), g.ncols(), |i, j| {
+            if i == j {
+                noise
+                    .get(j)
+                    .copied()
+                    .unwrap_or(0.0)
+                    // max/min, not clamp: a non-finite Gram matrix is the solver's error to
+                    // report.
+                    .max(0.0)
+                    .min(0.5 * g[(j, j)])
+            } else {
+                0.0
+            }
+        })
+    })
 }
 
 /// Bias-compensated least squares with the regressors' noise covariance `noise` (p×p,
@@ -186,6 +186,26 @@ pub fn least_squares_noise(
     y: &[f64],
     noise: &DMatrix<f64>,
 ) -> Result<LsFit, FitError> {
+    solve_compensated(cols, y, |g| {
+        let p = g.nrows();
+        let nm = DMatrix::from_fn(p, p, |i, j| {
+            if i < noise.nrows() && j < noise.ncols() {
+                noise[(i, j)]
+            } else {
+                0.0
+            }
+        });
+        nm.scale(noise_scale(g, &nm))
+    })
+}
+
+/// Solves `(XᵀX − N)·θ = Xᵀy` with `N = noise_of(XᵀX)` (the callers' caps need the Gram
+/// matrix, which is formed once here).
+fn solve_compensated(
+    cols: &[Vec<f64>],
+    y: &[f64],
+    noise_of: impl Fn(&DMatrix<f64>) -> DMatrix<f64>,
+) -> Result<LsFit, FitError> {
     let n = y.len();
     let p = cols.len();
     if n < p + 2 {
@@ -198,14 +218,7 @@ pub fn least_squares_noise(
         return Err(FitError::NonFinite);
     }
     let mut g = gram(cols);
-    let nm = DMatrix::from_fn(p, p, |i, j| {
-        if i < noise.nrows() && j < noise.ncols() {
-            noise[(i, j)]
-        } else {
-            0.0
-        }
-    });
-    let nm = nm.scale(noise_scale(&g, &nm));
+    let nm = noise_of(&g);
     g -= &nm;
     let ginv = gram_inverse(&g);
     let xty = DVector::from_iterator(
