@@ -22,6 +22,15 @@ pub struct LsFit {
     pub rss: f64,
     /// Blocks used for the covariance.
     pub blocks: usize,
+    /// `θᵀNθ`, N the regressors' noise covariance a compensated fit took off the Gram matrix
+    /// (0 for plain least squares): the part of [`LsFit::rss`] that is the regressors' own
+    /// noise passed through the fitted model. `rss − noise_rss` estimates the RSS the same
+    /// parameters would leave on noise-free regressors — the criterion to compare shapes
+    /// by (see [`least_squares_noise`]).
+    pub noise_rss: f64,
+    /// Standard deviation of the noise energy behind [`LsFit::noise_rss`] on a record of this
+    /// length (0 when not computed; see `residual::noise_energy_sd`).
+    pub noise_rss_sd: f64,
 }
 
 impl LsFit {
@@ -151,7 +160,7 @@ pub fn least_squares_compensated(
     least_squares_noise_cov(cols, y, &entries)
 }
 
-/// Bias-compensated least squares with a noise *covariance*: as
+/// Bias-compensated least squares with a noise *covariance* given entry by entry: as
 /// [`least_squares_compensated`], where `noise` lists `(j, k, v)`, the summed covariance `v`
 /// of the white measurement noise of columns `j` and `k` (`j == k`: a variance; `j ≠ k` is
 /// applied to both off-diagonal entries). Two columns built from the same noisy measurement
@@ -160,11 +169,64 @@ pub fn least_squares_compensated(
 /// in `XᵀX` just as a column's own noise inflates its diagonal. Diagonal entries are capped
 /// at half the column's energy, off-diagonal ones at half the geometric mean of the two
 /// (after the diagonal's cap), so a misjudged noise level cannot turn the Gram matrix
-/// indefinite.
+/// indefinite. ([`least_squares_noise`] takes a whole matrix and scales it instead.)
 pub fn least_squares_noise_cov(
     cols: &[Vec<f64>],
     y: &[f64],
     noise: &[(usize, usize, f64)],
+) -> Result<LsFit, FitError> {
+    solve_compensated(cols, y, |g| {
+        let p = g.nrows();
+        let mut nm = DMatrix::<f64>::zeros(p, p);
+        // max/min, not clamp: a non-finite Gram matrix is the solver's error to report.
+        for &(j, _, v) in noise.iter().filter(|e| e.0 == e.1 && e.0 < p) {
+            nm[(j, j)] += v.max(0.0).min(0.5 * g[(j, j)]);
+        }
+        for &(j, k, v) in noise.iter().filter(|e| e.0 != e.1 && e.0 < p && e.1 < p) {
+            let cap = 0.5
+                * ((g[(j, j)] - nm[(j, j)]) * (g[(k, k)] - nm[(k, k)]))
+                    .max(0.0)
+                    .sqrt();
+            let v = v.max(-cap).min(cap);
+            nm[(j, k)] += v;
+            nm[(k, j)] += v;
+        }
+        nm
+    })
+}
+
+/// Bias-compensated least squares with the regressors' noise covariance `noise` (p×p,
+/// summed over the rows: `n·Cov(noise)`; smaller matrices are padded with zeros): solves
+/// `(XᵀX − N)·θ = Xᵀy`, which minimises `‖y − Xθ‖² − θᵀNθ`, the residual the same θ would
+/// leave on noise-free regressors (plus a constant). The errors-in-variables case of several
+/// columns filtered from one noisy signal (the acceleration and a resonant filter of it): the
+/// noise is correlated across them and the off-diagonal terms matter. N is scaled down, if
+/// need be, so that `XᵀX − N` keeps at least half of `XᵀX` in every direction (a misjudged
+/// noise level cannot make the problem indefinite).
+pub fn least_squares_noise(
+    cols: &[Vec<f64>],
+    y: &[f64],
+    noise: &DMatrix<f64>,
+) -> Result<LsFit, FitError> {
+    solve_compensated(cols, y, |g| {
+        let p = g.nrows();
+        let nm = DMatrix::from_fn(p, p, |i, j| {
+            if i < noise.nrows() && j < noise.ncols() {
+                noise[(i, j)]
+            } else {
+                0.0
+            }
+        });
+        nm.scale(noise_scale(g, &nm))
+    })
+}
+
+/// Solves `(XᵀX − N)·θ = Xᵀy` with `N = noise_of(XᵀX)` (the callers' caps need the Gram
+/// matrix, which is formed once here).
+fn solve_compensated(
+    cols: &[Vec<f64>],
+    y: &[f64],
+    noise_of: impl Fn(&DMatrix<f64>) -> DMatrix<f64>,
 ) -> Result<LsFit, FitError> {
     let n = y.len();
     let p = cols.len();
@@ -178,15 +240,8 @@ pub fn least_squares_noise_cov(
         return Err(FitError::NonFinite);
     }
     let mut g = gram(cols);
-    for &(j, k, v) in noise.iter().filter(|e| e.0 == e.1 && e.0 < p) {
-        g[(j, k)] -= v.clamp(0.0, 0.5 * g[(j, j)]);
-    }
-    for &(j, k, v) in noise.iter().filter(|e| e.0 != e.1 && e.0 < p && e.1 < p) {
-        let cap = 0.5 * (g[(j, j)] * g[(k, k)]).max(0.0).sqrt();
-        let v = v.clamp(-cap, cap);
-        g[(j, k)] -= v;
-        g[(k, j)] -= v;
-    }
+    let nm = noise_of(&g);
+    g -= &nm;
     let ginv = gram_inverse(&g);
     let xty = DVector::from_iterator(
         p,
@@ -202,6 +257,7 @@ pub fn least_squares_noise_cov(
         }
     }
     let rss = residual.iter().map(|r| r * r).sum();
+    let noise_rss = (theta.transpose() * &nm * &theta)[(0, 0)];
     let (cov, blocks) = batch_covariance(cols, &residual, &ginv);
     Ok(LsFit {
         theta: theta.iter().copied().collect(),
@@ -209,7 +265,57 @@ pub fn least_squares_noise_cov(
         residual,
         rss,
         blocks,
+        noise_rss: if noise_rss.is_finite() {
+            noise_rss
+        } else {
+            0.0
+        },
+        noise_rss_sd: 0.0,
     })
+}
+
+/// Factor in (0, 1] for the noise matrix `nm` so that `g − factor·nm ⪰ ½·g`: the largest
+/// eigenvalue λ of `D·nm·D` relative to `D·g·D` (D the Gram diagonal's inverse square roots,
+/// then a Cholesky whitening of the scaled Gram) is held to ½. 1 when it already is, or when
+/// nothing is to be compensated; 0 when the Gram matrix is not positive definite.
+fn noise_scale(g: &DMatrix<f64>, nm: &DMatrix<f64>) -> f64 {
+    if nm.iter().all(|v| *v == 0.0) {
+        return 1.0;
+    }
+    let p = g.nrows();
+    let d: Vec<f64> = (0..p)
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let gs = DMatrix::from_fn(p, p, |i, j| {
+        g[(i, j)] * d[i] * d[j] + if i == j && d[i] == 0.0 { 1.0 } else { 0.0 }
+    });
+    let ns = DMatrix::from_fn(p, p, |i, j| nm[(i, j)] * d[i] * d[j]);
+    let Some(ch) = gs.cholesky() else {
+        return 0.0;
+    };
+    let l = ch.l();
+    let Some(li) = l.try_inverse() else {
+        return 0.0;
+    };
+    let m = &li * ns * li.transpose();
+    let m = (&m + m.transpose()).scale(0.5);
+    let lmax = m
+        .symmetric_eigenvalues()
+        .iter()
+        .fold(0.0f64, |a, &b| a.max(b));
+    if lmax.is_finite() && lmax > 0.5 {
+        0.5 / lmax
+    } else if lmax.is_finite() {
+        1.0
+    } else {
+        0.0
+    }
 }
 
 /// Result of a Levenberg–Marquardt fit.
@@ -376,6 +482,69 @@ mod tests {
             full.theta
         );
         assert!((diag.theta[1] - 2.0).abs() > 0.3, "{:?}", diag.theta);
+    }
+
+    /// Two regressors filtered from one noisy signal (the signal and its sum with its previous
+    /// sample): their noise is correlated, and the full noise matrix `n·σ²·[[1, 1], [1, 2]]`
+    /// undoes a shrinkage plain least squares shows in both coefficients.
+    #[test]
+    fn full_noise_matrix_undoes_correlated_shrinkage() {
+        let n = 40_000;
+        let sigma: f64 = 0.5;
+        let uniform = super::super::stats::tests_support::unit_uniform;
+        let x: Vec<f64> = (0..n as u64)
+            .map(|i| (uniform(i + 1_000_000) - 0.5) * 12f64.sqrt())
+            .collect();
+        let e: Vec<f64> = (0..n as u64)
+            .map(|i| (uniform(i) - 0.5) * 12f64.sqrt() * sigma)
+            .collect();
+        let pair = |v: &[f64]| -> Vec<f64> {
+            (0..v.len())
+                .map(|i| v[i] + if i > 0 { v[i - 1] } else { 0.0 })
+                .collect()
+        };
+        let y: Vec<f64> = x.iter().zip(pair(&x)).map(|(a, b)| 2.0 * a + b).collect();
+        let xm: Vec<f64> = x.iter().zip(&e).map(|(a, b)| a + b).collect();
+        let cols = [xm.clone(), pair(&xm)];
+        let ols = least_squares(&cols, &y).unwrap();
+        assert!((ols.theta[0] - 2.0).abs() > 0.1, "{:?}", ols.theta);
+        let s2 = n as f64 * sigma * sigma;
+        let nm = DMatrix::from_row_slice(2, 2, &[s2, s2, s2, 2.0 * s2]);
+        let bc = least_squares_noise(&cols, &y, &nm).unwrap();
+        assert!(
+            (bc.theta[0] - 2.0).abs() < 0.05 && (bc.theta[1] - 1.0).abs() < 0.05,
+            "{:?}",
+            bc.theta
+        );
+        // The noise those coefficients pass, θᵀNθ, is what the residual holds.
+        assert!(
+            (bc.noise_rss / bc.rss - 1.0).abs() < 0.05,
+            "{} vs {}",
+            bc.noise_rss,
+            bc.rss
+        );
+    }
+
+    /// Non-finite data is an error, not a panic (a diverged record holds NaN).
+    #[test]
+    fn non_finite_data_is_an_error() {
+        let cols = [vec![1.0, f64::NAN, 2.0, 3.0, 4.0]];
+        let y = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert!(matches!(least_squares(&cols, &y), Err(FitError::NonFinite)));
+        assert!(matches!(
+            least_squares_compensated(&cols, &y, &[1.0]),
+            Err(FitError::NonFinite)
+        ));
+    }
+
+    /// A noise matrix larger than half the Gram matrix is scaled down to it.
+    #[test]
+    fn noise_scale_keeps_half_the_gram() {
+        let g = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 2.0]);
+        assert_eq!(noise_scale(&g, &DMatrix::zeros(2, 2)), 1.0);
+        assert_eq!(noise_scale(&g, &g.scale(0.3)), 1.0);
+        let f = noise_scale(&g, &g.scale(0.8));
+        assert!((f - 0.625).abs() < 1e-9, "{f}");
     }
 
     #[test]

@@ -23,4 +23,5 @@ pub mod model;
 pub mod refine;
 pub mod report;
 pub mod residual;
+pub mod spectral;
 pub mod stats;
