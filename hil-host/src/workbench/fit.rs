@@ -89,6 +89,20 @@ pub fn gram(cols: &[Vec<f64>]) -> DMatrix<f64> {
     g
 }
 
+/// `1/√g_ii` (0 where the diagonal is not positive): the column scaling that puts a Gram
+/// matrix's diagonal at 1.
+fn inverse_sqrt_diagonal(g: &DMatrix<f64>) -> Vec<f64> {
+    (0..g.nrows())
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// Inverse of a Gram matrix through column scaling and an SVD pseudo-inverse, so nearly
 /// collinear or badly scaled columns (jerk next to a constant) do not blow up.
 pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
@@ -97,15 +111,7 @@ pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
     if g.iter().any(|v| !v.is_finite()) {
         return DMatrix::from_element(p, p, f64::NAN);
     }
-    let d: Vec<f64> = (0..p)
-        .map(|i| {
-            if g[(i, i)] > 0.0 {
-                1.0 / g[(i, i)].sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let d = inverse_sqrt_diagonal(g);
     let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
     let inv = gs
         .pseudo_inverse(1e-12)
@@ -283,15 +289,7 @@ fn noise_scale(g: &DMatrix<f64>, nm: &DMatrix<f64>) -> f64 {
         return 1.0;
     }
     let p = g.nrows();
-    let d: Vec<f64> = (0..p)
-        .map(|i| {
-            if g[(i, i)] > 0.0 {
-                1.0 / g[(i, i)].sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let d = inverse_sqrt_diagonal(g);
     let gs = DMatrix::from_fn(p, p, |i, j| {
         g[(i, j)] * d[i] * d[j] + if i == j && d[i] == 0.0 { 1.0 } else { 0.0 }
     });
