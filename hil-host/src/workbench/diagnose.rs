@@ -109,8 +109,14 @@ pub struct Baseline {
     pub fit_percent: f64,
     /// RMS residual.
     pub rms: f64,
-    /// Noise-floor estimate.
+    /// Noise floor of the equation-error residual: the input's noise and the encoder's noise
+    /// through the fitted inertia, added in power ([`Prepared::equation_floor`]).
     pub noise_floor_rms: f64,
+    /// The input's share of the floor ([`Prepared::noise_floor`]).
+    pub input_noise_rms: f64,
+    /// The position encoder's share: J·σ_a after the differentiator
+    /// ([`Prepared::encoder_floor`]).
+    pub encoder_noise_rms: f64,
     /// Ljung–Box p.
     pub ljung_box_p: f64,
     /// Model description.
@@ -403,10 +409,19 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let e = &base.residual;
     let rss = base.rss.max(1e-300);
     let pred: Vec<f64> = p.input.iter().zip(e).map(|(u, r)| u - r).collect();
+    // The inertia this fit gives (the model's own when it is held fixed).
+    let inertia = d
+        .free
+        .iter()
+        .position(|&i| i == 0)
+        .and_then(|k| base.theta.get(k).copied())
+        .unwrap_or(model.inertia.value);
     let baseline = Baseline {
         fit_percent: metrics::fit_percent(&p.input, &pred),
         rms: (rss / e.len() as f64).sqrt(),
-        noise_floor_rms: p.noise_floor,
+        noise_floor_rms: p.equation_floor(inertia),
+        input_noise_rms: p.noise_floor,
+        encoder_noise_rms: p.encoder_floor(inertia),
         ljung_box_p: stats::ljung_box(e, 20).1,
         model: model.name.clone(),
     };
@@ -414,6 +429,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let mut untestable = Vec::new();
     let mut notes = Vec::new();
     let mut scans = Vec::new();
+    // Tested, and explain nothing: fitted with the unphysical sign at every shape (Coulomb
+    // friction that would push the motion), or spanned by the model already.
+    let mut nothing: Vec<Scan> = Vec::new();
     // The shape scans are independent: run them on the available cores.
     let traj = p.trajectory();
     let kinds: Vec<EffectKind> = EffectKind::ALL
@@ -452,10 +470,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         let kind = kinds[i];
         match sc {
             Some(s) if s.err > 0.0 => scans.push(s),
-            Some(_) => untestable.push(format!(
-                "{}: fingerprint already spanned by the model on this record",
-                kind.name()
-            )),
+            Some(s) => nothing.push(s),
             None => untestable.push(format!(
                 "{}: no shape to test on this record (e.g. unknown period)",
                 kind.name()
@@ -523,6 +538,21 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             ));
         }
     }
+    // Ranked last with no evidence (every effect not in the model is ranked). They stay out of
+    // Holm's family: a test that cannot reject does not spend any of the error rate.
+    cands.extend(nothing.iter().map(|s| Candidate {
+        effect: s.kind.name().into(),
+        rank: 0,
+        statistic: 0.0,
+        p_value: 1.0,
+        p_raw: 1.0,
+        err: 0.0,
+        df: residual::candidate_columns_on(s.kind, &t, &s.shape).len(),
+        grid: s.grid,
+        significant: false,
+        shape: s.shape.clone(),
+        kind: Some(s.kind),
+    }));
     cands.sort_by(|a, b| b.err.total_cmp(&a.err));
     prefer_parsimonious(&mut cands, p, x0, &g0i, e, opts);
     for (i, c) in cands.iter_mut().enumerate() {
@@ -580,6 +610,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             }
         }
     };
+    if let Some(note) = encoder_limited(&baseline, verdict.add.as_deref()) {
+        notes.push(note);
+    }
     Diagnosis {
         residual_mode: residual::Mode::Equation.name().into(),
         baseline,
@@ -588,6 +621,31 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         untestable,
         notes,
     }
+}
+
+/// RMS of the baseline residual, in units of its noise floor, up to which the residual counts
+/// as "at the floor" for [`encoder_limited`].
+const AT_FLOOR: f64 = 1.2;
+
+/// A warning when a verdict rests on a residual that is at its noise floor and that floor is
+/// mostly the encoder's noise through the differentiator: that noise is a function of the
+/// motion (between counts the position is flat, each count a step), and on a smooth,
+/// undithered excitation it is structured enough for a filtered-motion or filtered-command
+/// fingerprint to fit it consistently across the record — on a rigid joint with a 2¹⁶-count
+/// encoder, two slow sines and a 40 Hz cut-off the diagnosis names compliance.
+fn encoder_limited(b: &Baseline, verdict: Option<&str>) -> Option<String> {
+    let effect = verdict?;
+    let at_floor = b.rms <= AT_FLOOR * b.noise_floor_rms;
+    (at_floor && b.encoder_noise_rms > b.input_noise_rms).then(|| {
+        format!(
+            "{effect}: the residual is at its noise floor (RMS {:.2}× it) and {:.0} % of that \
+             floor's power is the encoder's noise through the differentiator; the verdict may \
+             fit the differentiated quantisation, not a physical effect — confirm with a finer \
+             encoder, a lower --cutoff or a dithered excitation",
+            b.rms / b.noise_floor_rms,
+            100.0 * (b.encoder_noise_rms / b.noise_floor_rms).powi(2)
+        )
+    })
 }
 
 impl Diagnosis {
@@ -611,8 +669,15 @@ impl Diagnosis {
         let _ = writeln!(s, "model: {}", b.model);
         let _ = writeln!(
             s,
-            "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e}   Ljung–Box p {:.2e}",
-            self.residual_mode, b.fit_percent, b.rms, b.noise_floor_rms, b.ljung_box_p
+            "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e} (input {:.3e}, \
+             encoder {:.3e})   Ljung–Box p {:.2e}",
+            self.residual_mode,
+            b.fit_percent,
+            b.rms,
+            b.noise_floor_rms,
+            b.input_noise_rms,
+            b.encoder_noise_rms,
+            b.ljung_box_p
         );
         let _ = writeln!(
             s,
