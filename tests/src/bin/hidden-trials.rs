@@ -3,72 +3,117 @@
 //!
 //! ```sh
 //! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
-//!     [--family a,b | --pairs-only | --nulls-only]
+//!     [--family a,b | --pairs-only | --nulls-only] [--fails] [--load-encoder]
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- one FAMILY SEED RHO
 //! ```
-//! `--family` runs only those single-effect families, `--pairs-only` only the `--auto` pairs,
-//! `--nulls-only` only the null trials (quick iteration); seeds are the same as in a full run.
-//! `--fails` lists (on stderr) the single-effect trials at ρ ≥ 1 that missed rank 1 or the
-//! refit-to-floor bound, with the seed and target ρ to replay them with `one`.
-//! Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per measured-ρ bin.
-//! `--load-encoder` records a load-side encoder too and passes it to the workbench (see
-//! `TrialOptions::load_encoder`; same seeds, same draws, same floors); also for `one`
-//! (`hidden-trials one FAMILY SEED RHO --load-encoder`).
+//! (`--help` lists the options.) The quick-iteration filters keep every trial's seed as in a
+//! full run. Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per
+//! measured-ρ bin. `--load-encoder` records a load-side encoder too and passes it to the
+//! workbench (see `TrialOptions::load_encoder`; same seeds, draws and floors).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
+use clap::{Args, Parser, Subcommand};
 use jointlab_tests::hidden::{run_with, Family, Outcome, TrialOptions};
 
+/// Hidden-effect trials of the workbench: confusion matrix, hit rates per strength bin, null
+/// false-alarm rate, refit-to-floor rate, `--auto` pairs.
+#[derive(Parser)]
+#[command(args_conflicts_with_subcommands = true)]
+struct Cli {
+    #[command(subcommand)]
+    one: Option<One>,
+    #[command(flatten)]
+    bench: Bench,
+}
+
+#[derive(Args)]
+struct Bench {
+    /// Trials per single-effect family (and null trials; half as many pairs).
+    #[arg(default_value_t = 200)]
+    trials: usize,
+    /// Seed of the whole run (each trial's seed derives from it, family and index).
+    #[arg(default_value_t = 1)]
+    seed: u64,
+    /// Run only these single-effect families (comma-separated; no nulls, no pairs).
+    #[arg(long, value_delimiter = ',', conflicts_with_all = ["pairs_only", "nulls_only"])]
+    family: Option<Vec<String>>,
+    /// Run only the `--auto` pairs.
+    #[arg(long, conflicts_with = "nulls_only")]
+    pairs_only: bool,
+    /// Run only the null trials.
+    #[arg(long)]
+    nulls_only: bool,
+    /// List (on stderr) the single-effect trials at ρ ≥ 1 that missed rank 1 or the refit bound.
+    #[arg(long)]
+    fails: bool,
+    /// Record a load-side encoder too and pass it to the workbench.
+    #[arg(long)]
+    load_encoder: bool,
+}
+
+#[derive(Subcommand)]
+enum One {
+    /// Run and print one trial (replay a miss from `--fails`; `HIDDEN_DEBUG=1` for detail).
+    One {
+        /// Hidden effect(s), `+`-separated (e.g. `gravity+asymmetry`).
+        families: String,
+        /// The trial's seed (as `--fails` prints it).
+        seed: u64,
+        /// Target strength ρ.
+        rho: f64,
+        /// Record a load-side encoder too.
+        #[arg(long)]
+        load_encoder: bool,
+    },
+}
+
 fn main() {
-    // Flags (for quick iteration): `--family a,b` runs only those single-effect families (no
-    // nulls, no pairs); `--pairs-only`; `--nulls-only`.
-    let raw: Vec<String> = std::env::args().skip(1).collect();
-    let mut only: Option<Vec<String>> = None;
-    let (mut singles, mut with_nulls, mut with_pairs) = (true, true, true);
-    let mut show_fails = false;
-    let mut opts = TrialOptions::default();
-    let mut positional = Vec::new();
-    let mut it = raw.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--family" => {
-                only = it
-                    .next()
-                    .map(|v| v.split(',').map(str::to_string).collect());
-                with_nulls = false;
-                with_pairs = false;
-            }
-            "--pairs-only" => (singles, with_nulls) = (false, false),
-            "--nulls-only" => (singles, with_pairs) = (false, false),
-            "--fails" => show_fails = true,
-            "--load-encoder" => opts.load_encoder = true,
-            _ => positional.push(a.clone()),
-        }
-    }
-    let mut args = positional.into_iter();
-    let trials: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(200);
-    let seed0: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1);
-    let rhos = [0.5, 1.0, 2.0, 4.0];
-    // `hidden-trials one FAMILY SEED RHO`: run and print a single trial (debugging aid).
-    if std::env::args().nth(1).as_deref() == Some("one") {
-        let a: Vec<String> = std::env::args()
-            .skip(2)
-            .filter(|a| a != "--load-encoder")
-            .collect();
+    let cli = Cli::parse();
+    if let Some(One::One {
+        families,
+        seed,
+        rho,
+        load_encoder,
+    }) = cli.one
+    {
         let fam: Vec<Family> = Family::ALL
             .iter()
             .copied()
-            .filter(|f| a[0].split('+').any(|n| n == f.name()))
+            .filter(|f| families.split('+').any(|n| n == f.name()))
             .collect();
-        let o = run_with(
-            a[1].parse().unwrap_or(1),
-            &fam,
-            a[2].parse().unwrap_or(1.0),
-            opts,
-        );
+        if fam.is_empty() {
+            let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
+            eprintln!("no family in {families:?}; known: {}", names.join(", "));
+            std::process::exit(2);
+        }
+        let o = run_with(seed, &fam, rho, TrialOptions { load_encoder });
         println!("{o:?}");
         return;
     }
+    let Bench {
+        trials,
+        seed: seed0,
+        family: only,
+        pairs_only,
+        nulls_only,
+        fails: show_fails,
+        load_encoder,
+    } = cli.bench;
+    if let Some(names) = &only {
+        for n in names {
+            if !Family::ALL.iter().any(|f| f.name() == n) {
+                eprintln!("--family: unknown family {n:?}");
+                std::process::exit(2);
+            }
+        }
+    }
+    let singles = !pairs_only && !nulls_only;
+    let with_nulls = only.is_none() && !pairs_only;
+    let with_pairs = only.is_none() && !nulls_only;
+    let opts = TrialOptions { load_encoder };
+    let rhos = [0.5, 1.0, 2.0, 4.0];
     let t0 = Instant::now();
     let pair_fams = [
         (Family::Coulomb, Family::Offset),
