@@ -553,7 +553,21 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         shape: s.shape.clone(),
         kind: Some(s.kind),
     }));
-    cands.sort_by(|a, b| b.err.total_cmp(&a.err));
+    // Ranked by ERR within three groups: evidence at a shape the record resolves; evidence at
+    // a shape it does not (never a verdict, and its ERR is no evidence for the effect: a
+    // command-form compliance column at a mode above the band is ≈ u⁽²⁾/ω² and fits the
+    // command's own high-frequency content — over a third of a rigid joint's residual, and it
+    // outranked the Stribeck friction of hidden trials that way); no evidence.
+    let group = |c: &Candidate| {
+        if c.err <= 0.0 {
+            2
+        } else if c.kind.is_none_or(|k| resolved(k, &t, &c.shape)) {
+            0
+        } else {
+            1
+        }
+    };
+    cands.sort_by(|a, b| group(a).cmp(&group(b)).then(b.err.total_cmp(&a.err)));
     prefer_parsimonious(&mut cands, p, x0, &g0i, e, opts);
     for (i, c) in cands.iter_mut().enumerate() {
         c.rank = i + 1;
