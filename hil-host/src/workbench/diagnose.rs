@@ -553,18 +553,23 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         shape: s.shape.clone(),
         kind: Some(s.kind),
     }));
-    // Ranked by ERR within three groups: evidence at a shape the record resolves; evidence at
-    // a shape it does not (never a verdict, and its ERR is no evidence for the effect: a
-    // command-form compliance column at a mode above the band is ≈ u⁽²⁾/ω² and fits the
-    // command's own high-frequency content — over a third of a rigid joint's residual, and it
-    // outranked the Stribeck friction of hidden trials that way); no evidence.
+    // Ranked by ERR, no-evidence candidates last. A candidate at a shape the record does not
+    // resolve (never a verdict) ranks below the resolved ones when one of those is
+    // significant: its ERR is then weaker evidence than the verdict's. A command-form
+    // compliance column at a mode above the band is ≈ u⁽²⁾/ω² and fits the command's own
+    // high-frequency content (over a third of a rigid joint's residual), and it outranked the
+    // significant Stribeck friction of hidden trials that way. Without a significant resolved
+    // candidate it keeps its place: a transmission mode above the band does leave that
+    // residual, and it is then the best lead the record gives.
+    let is_resolved = |c: &Candidate| c.kind.is_none_or(|k| resolved(k, &t, &c.shape));
+    let demote = cands.iter().any(|c| c.significant && is_resolved(c));
     let group = |c: &Candidate| {
         if c.err <= 0.0 {
             2
-        } else if c.kind.is_none_or(|k| resolved(k, &t, &c.shape)) {
-            0
-        } else {
+        } else if demote && !is_resolved(c) {
             1
+        } else {
+            0
         }
     };
     cands.sort_by(|a, b| group(a).cmp(&group(b)).then(b.err.total_cmp(&a.err)));
