@@ -214,3 +214,39 @@ fn auto_adds_nothing_to_null_records() {
         "--auto added effects to null records: {added:?}"
     );
 }
+
+#[test]
+fn speed_record_is_one_continuous_joint() {
+    use hil_host::workbench::diagnose::{diagnose, Options};
+    use hil_host::workbench::model::Model;
+    use hil_host::workbench::refine;
+    use hil_host::workbench::residual::Prepared;
+    use jointlab_tests::hidden::{cutoff, long_record, N};
+    // `diagnose-speed` times the workbench on this record; the time only means something if
+    // the diagnosis is the one a user would get. Joins must not jump in position (an earlier
+    // version offset each segment from the *first* one's end), all clocks and columns line up,
+    // and the diagnosis finds the hidden Coulomb friction.
+    let rec = long_record(42, 3);
+    assert_eq!(rec.input.len(), 3 * N);
+    assert_eq!(rec.output.len(), 3 * N);
+    assert_eq!(rec.time.len(), 3 * N);
+    let step = |k: usize| (rec.output[k] - rec.output[k - 1]).abs();
+    let inside = (1..N).map(step).fold(0.0, f64::max);
+    for j in [N, 2 * N] {
+        assert!(
+            step(j) <= 2.0 * inside,
+            "join at {j} jumps {:.3e} rad (largest step inside a segment {inside:.3e})",
+            step(j)
+        );
+    }
+    let p = Prepared::new(&rec, cutoff());
+    let mut m = Model::baseline();
+    refine::refit_all(&mut m, &p).expect("fit");
+    let d = diagnose(&m, &p, &Options::default());
+    assert!(
+        d.baseline.fit_percent > 80.0,
+        "baseline fit {:.1} %: not one joint",
+        d.baseline.fit_percent
+    );
+    assert_eq!(d.verdict.add.as_deref(), Some("coulomb"), "{}", d.to_text());
+}

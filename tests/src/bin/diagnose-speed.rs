@@ -22,7 +22,7 @@ fn main() {
     let mut table = String::new();
     for _ in 0..3 {
         let t0 = Instant::now();
-        let p = Prepared::new(&rec, None);
+        let p = Prepared::new(&rec, jointlab_tests::hidden::cutoff());
         let mut m = Model::baseline();
         refine::refit_all(&mut m, &p).expect("fit");
         let d = diagnose(&m, &p, &Options::default());
