@@ -543,7 +543,7 @@ pub fn generate_with(
         plant = with_effect(&d, &plant, f, a, travel);
     }
     if std::env::var_os("HIDDEN_DEBUG").is_some() {
-        eprintln!("truth: {plant:?}");
+        eprintln!("truth: {plant:?}; input noise σ {:.3e}", d.noise_u);
         let twin: Vec<String> = m0
             .params()
             .iter()
