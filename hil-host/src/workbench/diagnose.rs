@@ -30,8 +30,8 @@
 //!    significant candidate. A compliance mode the record does not resolve (never a verdict)
 //!    that would rank above the verdict is ranked by its *motion form's* ERR instead, net of
 //!    the encoder noise ([`motion_form_err`]): its command-form column carries the recorded
-//!    input's own noise and can outrank a real friction effect by fitting it. Occam: if a significant candidate with fewer fingerprint columns
-//!    leaves the same trace (contributions correlated ≥ `ambiguity_corr`) and the top one
+//!    input's own noise and can outrank a real friction effect by fitting it. Occam: if a
+//!    significant candidate with fewer fingerprint columns leaves the same trace (contributions correlated ≥ `ambiguity_corr`) and the top one
 //!    explains less than `min_err` more of the residual, the simpler one goes first.
 //! 5. **Ambiguity.** If another significant candidate's best-fit contribution (its partial
 //!    projection of the residual) correlates ≥ `ambiguity_corr` with the winner's and
@@ -39,7 +39,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
-use sim_plant::effects::{resolved, shape_search, EffectKind, Shape, Trajectory};
+use sim_plant::effects::{compliance, resolved, shape_search, EffectKind, Shape, Trajectory};
 
 use super::fit::{self, gram, gram_inverse};
 use super::metrics;
@@ -412,35 +412,32 @@ fn motion_form_err(
     freqs.sort_by(f64::total_cmp);
     freqs.dedup_by(|a, b| (*a / *b - 1.0).abs() < 1e-9);
     let shapes = freqs.iter().flat_map(|&f| {
-        [0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.6].map(|zeta| Shape {
-            compliance_frequency: f,
-            compliance_damping: zeta,
-            compliance_near_inertia: 1.0,
-            compliance_ratio: 0.0,
-            compliance_load_damping: 0.0,
-            ..Shape::default()
+        [0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.6].map(|zeta| {
+            let mut sh = Shape {
+                compliance_frequency: f,
+                compliance_damping: zeta,
+                ..Shape::default()
+            };
+            compliance::set_unit_motion_form(&mut sh);
+            sh
         })
     });
     for sh in shapes {
         let z = residual::candidate_columns_on(EffectKind::Compliance, &t, &sh);
         // The residual's encoder noise is −J·(the acceleration's); the column's is its own
         // impulse response to the position's noise.
-        let bias: Vec<NoiseBias> = probe
-            .map(|pr| {
-                let hz =
-                    residual::candidate_columns_on(EffectKind::Compliance, &pr.trajectory(), &sh);
-                let h = &hz[0];
-                let cross: f64 = h.iter().zip(&pr.acceleration).map(|(a, b)| a * b).sum();
-                let energy: f64 = h.iter().map(|a| a * a).sum();
-                let s2 = n * p.position_noise_var;
-                NoiseBias {
-                    cross: -s2 * inertia * cross,
-                    energy: s2 * energy,
-                }
-            })
-            .into_iter()
-            .collect();
-        let (dr, first) = delta_rss_signed(&z, x0, g0i, e, &bias);
+        let bias = probe.map(|pr| {
+            let hz = residual::candidate_columns_on(EffectKind::Compliance, &pr.trajectory(), &sh);
+            let h = &hz[0];
+            let cross: f64 = h.iter().zip(&pr.acceleration).map(|(a, b)| a * b).sum();
+            let energy: f64 = h.iter().map(|a| a * a).sum();
+            let s2 = n * p.position_noise_var;
+            NoiseBias {
+                cross: -s2 * inertia * cross,
+                energy: s2 * energy,
+            }
+        });
+        let (dr, first) = delta_rss_signed(&z, x0, g0i, e, bias.as_slice());
         if first < 0.0 {
             best = best.max(dr / rss);
         }
@@ -653,7 +650,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         .iter()
         .filter(|c| c.significant && c.kind.is_none_or(|k| resolved(k, &t, &c.shape)))
         .map(|c| c.err)
-        .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))));
+        .reduce(f64::max);
     let mut rank_err: Vec<f64> = cands.iter().map(|c| c.err).collect();
     if let Some(v) = verdict_err {
         for (c, r) in cands.iter().zip(rank_err.iter_mut()) {
@@ -664,9 +661,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             }
         }
     }
-    let mut order: Vec<usize> = (0..cands.len()).collect();
-    order.sort_by(|&a, &b| rank_err[b].total_cmp(&rank_err[a]));
-    cands = order.into_iter().map(|i| cands[i].clone()).collect();
+    let mut keyed: Vec<(f64, Candidate)> = rank_err.into_iter().zip(cands).collect();
+    keyed.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut cands: Vec<Candidate> = keyed.into_iter().map(|(_, c)| c).collect();
     prefer_parsimonious(&mut cands, p, x0, &g0i, e, opts);
     for (i, c) in cands.iter_mut().enumerate() {
         c.rank = i + 1;

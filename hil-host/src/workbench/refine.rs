@@ -466,12 +466,7 @@ fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
     let command_form = model.clone();
     let r0 = ls_rss(&mut model.clone(), p);
     let mut m = model.clone();
-    {
-        let sh = &mut m.effects[e].shape;
-        sh.compliance_near_inertia = 1.0;
-        sh.compliance_ratio = 0.0;
-        sh.compliance_load_damping = 0.0;
-    }
+    sim_plant::effects::compliance::set_unit_motion_form(&mut m.effects[e].shape);
     let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
     freqs2.extend(&freqs);
     freqs2.retain(|&f| f > 0.5);

@@ -212,6 +212,16 @@ pub fn top_frequency(traj: &Trajectory) -> f64 {
     hi
 }
 
+/// Switch `shape` to the motion form in its search coordinates: unit J1, no inertia ratio, no
+/// load damping — the column is then `H₂·a` at the locked-motor mode (frequency and damping
+/// as `shape` holds them) and its amplitude is −J2, linear. Both the refit's motion-form
+/// search and the diagnosis's ranking check start from it.
+pub fn set_unit_motion_form(shape: &mut Shape) {
+    shape.compliance_near_inertia = 1.0;
+    shape.compliance_ratio = 0.0;
+    shape.compliance_load_damping = 0.0;
+}
+
 /// A mode is resolved when it lies below the top of the grid: a search that ends at or above
 /// the top has found a mode above the record's bandwidth, whose frequency the record does not
 /// identify (the column is then `≈ u⁽²⁾/ω²`, any ω above the band fits).
