@@ -307,8 +307,8 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   `search_stick`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
-fn search_shapes(model: &mut Model, p: &Prepared) {
-    search_each(model, p);
+fn search_shapes(model: &mut Model, p: &Prepared, start: SignStart) {
+    search_each(model, p, start);
     // Direction-dependent friction switches with the Coulomb friction: an asymmetry next to a
     // Coulomb term takes its sign shape (an independent one would buy reversal-shape freedom
     // with the second sign column and stand in for an offset).
@@ -329,7 +329,7 @@ fn search_shapes(model: &mut Model, p: &Prepared) {
     }
 }
 
-fn search_each(model: &mut Model, p: &Prepared) {
+fn search_each(model: &mut Model, p: &Prepared, start: SignStart) {
     let dt = p.dt;
     for e in 0..model.effects.len() {
         let entry = &model.effects[e];
@@ -369,7 +369,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             EffectKind::Coulomb => {
                 let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
                 let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
-                search_sign(model, p, e, &set_eps, &set_lead);
+                search_sign(model, p, e, &set_eps, &set_lead, SignStart::Searched);
             }
             EffectKind::Ripple => {
                 let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
@@ -399,7 +399,7 @@ fn search_each(model: &mut Model, p: &Prepared) {
             EffectKind::Compliance => search_compliance(model, p, e),
             EffectKind::Quantization => search_quantum(model, p, e),
             EffectKind::Backlash => search_backlash(model, p, e),
-            EffectKind::Stribeck => search_stick(model, p, e),
+            EffectKind::Stribeck => search_stick(model, p, e, start),
             _ => {}
         }
     }
@@ -602,7 +602,7 @@ fn set_stick(m: &mut Model, e: usize, vh: f64) {
 ///   at every fast reversal and the RSS has an interior minimum);
 /// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
 ///   once the stick phases are no longer its to explain. LM then refines vs.
-fn search_stick(model: &mut Model, p: &Prepared, e: usize) {
+fn search_stick(model: &mut Model, p: &Prepared, e: usize, start: SignStart) {
     let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if vmax.is_nan() || vmax <= 0.0 {
         return;
@@ -615,7 +615,7 @@ fn search_stick(model: &mut Model, p: &Prepared, e: usize) {
         h.value = 1.0;
         h.free = false;
     }
-    search_dry_sign(model, p, e);
+    search_dry_sign(model, p, e, start);
     let xs = sim_plant::effects::signal::log_space(1e-4 * vmax, 1e-2 * vmax, 9);
     let (v0, _) = line_search(model, p, e, &xs, &set_stick);
     if v0 > 0.0 {
@@ -648,10 +648,20 @@ fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
 
 /// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms' (see
 /// [`search_sign`]).
-fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize) {
+fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize, start: SignStart) {
     let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
     let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
-    search_sign(model, p, e, &set_eps, &set_lead);
+    search_sign(model, p, e, &set_eps, &set_lead, start);
+}
+
+/// Where a dry-friction sign search starts (see [`refit_all`]'s two starts for Stribeck).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SignStart {
+    /// The lead is searched jointly with the smoothing ε.
+    Searched,
+    /// The lead is held at 0 — the reversal where the zero-phase velocity crosses zero — and
+    /// only ε is searched.
+    NoLead,
 }
 
 /// A dry-friction sign shape: smoothing ε (Coulomb's grid) × sign lead (−6…8 samples) on a
@@ -662,18 +672,24 @@ fn search_sign(
     e: usize,
     set_eps: &dyn Fn(&mut Model, usize, f64),
     set_lead: &dyn Fn(&mut Model, usize, f64),
+    start: SignStart,
 ) {
     let dt = p.dt;
+    let eps: Vec<f64> = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+        .iter()
+        .map(|s| s.sign_epsilon)
+        .collect();
+    if start == SignStart::NoLead {
+        set_lead(model, e, 0.0);
+        line_search(model, p, e, &eps, set_eps);
+        return;
+    }
     let leads: Vec<f64> = [
         -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
     ]
     .iter()
     .map(|k| k * dt)
     .collect();
-    let eps: Vec<f64> = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
-        .iter()
-        .map(|s| s.sign_epsilon)
-        .collect();
     grid_search(model, p, e, &eps, set_eps, &leads, set_lead);
     let l = model.effects[e].shape.sign_lead;
     golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, set_lead);
@@ -758,9 +774,39 @@ pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape
 /// the compensated solution at the very same shapes had it within 0.1 %. The objective is the
 /// one the shape searches minimise ([`ls_rss`]), so LM polishes their result instead of
 /// pulling it elsewhere. The amplitudes' 1σ are the least-squares ones at the final shape.
+///
+/// A model with a free Stribeck term is refitted from **two starts** and keeps the one with
+/// the lower equation error (its [`score`], the stuck rows' clipped balancing torque
+/// included): the dry-friction sign lead searched, and the lead held at 0. The stick window,
+/// the sign shape and vs × δ are searched one after the other on a multimodal surface, and
+/// where the search ends depends on where the lead took it. On the 119 hidden-Stribeck
+/// trials at ρ ≥ 1 of the 200-per-family bench the lead-free start ended lower on the
+/// estimation record in 73 (mostly by little; once at 1.23× the floor where the searched lead
+/// had stopped at 10.9×, validation 22.9 → 1.19×), and the refit-to-floor rate rose
+/// 93 → 97 of 119 with no trial lost. A zero lead is the physical prior — the differentiator
+/// is zero-phase, so the friction reverses where the measured velocity crosses zero — and
+/// the searched lead the data's alternative.
 pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
+    let stribeck = model
+        .effects
+        .iter()
+        .any(|e| e.kind == EffectKind::Stribeck && e.params.iter().any(|q| q.free));
+    if !stribeck {
+        return refit_from(model, p, SignStart::Searched);
+    }
+    let mut lead_free = model.clone();
+    let alt = refit_from(&mut lead_free, p, SignStart::NoLead);
+    refit_from(model, p, SignStart::Searched)?;
+    if alt.is_ok() && score(&lead_free, p).rms < score(model, p).rms {
+        *model = lead_free;
+    }
+    Ok(())
+}
+
+/// [`refit_all`] from one start of the dry-friction sign search.
+fn refit_from(model: &mut Model, p: &Prepared, start: SignStart) -> Result<(), fit::FitError> {
     residual::refit(model, p)?;
-    search_shapes(model, p);
+    search_shapes(model, p, start);
     let before = residual::refit(model, p)?.rss;
     let lm_idx: Vec<usize> = model
         .effects
