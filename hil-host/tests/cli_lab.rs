@@ -58,6 +58,24 @@ fn demo_writes_recording_log_and_plot_and_prints_the_summary() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `--preset list` is a question, not an error: the names on stdout, one per line, exit 0,
+/// and nothing run.
+#[test]
+fn preset_list_prints_the_names_and_succeeds() {
+    let dir = std::env::temp_dir().join(format!("jointlab-preset-list-{}", std::process::id()));
+    let o = hil()
+        .args(["demo", "--preset", "list", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let names: Vec<&str> = out.lines().collect();
+    assert!(names.contains(&"whoi-cable-30"), "{out}");
+    assert!(names.contains(&"harmonic-drive-60"), "{out}");
+    assert!(!dir.exists(), "--preset list ran the demo");
+}
+
 #[test]
 fn bad_input_gets_a_clear_error() {
     let run = |args: &[&str]| {

@@ -69,15 +69,19 @@ pub struct PlantChoice {
 }
 
 impl PlantChoice {
-    /// Loads the model.
-    pub fn load(&self) -> Result<Model> {
+    /// Loads the model; `None` after printing the preset names for `--preset list` (the
+    /// command then has nothing more to do and succeeds).
+    pub fn load(&self) -> Result<Option<Model>> {
         if let Some(p) = &self.model {
-            return Ok(Model::load(p)?);
+            return Ok(Some(Model::load(p)?));
         }
         if self.preset == "list" {
-            bail!("presets: {}", sim_plant::preset_names().join(", "));
+            for name in sim_plant::preset_names() {
+                println!("{name}");
+            }
+            return Ok(None);
         }
-        sim_plant::preset(&self.preset).ok_or_else(|| {
+        sim_plant::preset(&self.preset).map(Some).ok_or_else(|| {
             anyhow!(
                 "unknown preset `{}`; one of: {}",
                 self.preset,
@@ -160,7 +164,9 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
 
 /// Runs the zero-setup demo.
 pub fn demo(a: DemoArgs) -> Result<()> {
-    let model = a.plant.load()?;
+    let Some(model) = a.plant.load()? else {
+        return Ok(());
+    };
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
@@ -369,7 +375,9 @@ fn print_plant_stats(st: &PlantStats) {
 
 /// Runs the plant node for `--seconds`.
 pub fn plant(a: PlantArgs) -> Result<()> {
-    let model = a.plant.load()?;
+    let Some(model) = a.plant.load()? else {
+        return Ok(());
+    };
     let sc = match &a.scenario {
         Some(s) => Some(Scenario::new(scenarios(s)?[0], &model)?),
         None => None,
@@ -480,7 +488,9 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
 
 /// Runs the supervisor until its script ends (or Ctrl-C).
 pub fn supervise(a: SuperviseArgs) -> Result<()> {
-    let model = a.plant.load()?;
+    let Some(model) = a.plant.load()? else {
+        return Ok(());
+    };
     let (_, mut sup) = build_supervisor(&a, &model)?;
     let mut bus = open(&a.bus)?;
     let stop = stop_on_ctrl_c();
@@ -552,7 +562,9 @@ pub struct RunArgs {
 
 /// Card, plant and supervisor as threads, each with its own handle on the bus.
 pub fn run(a: RunArgs) -> Result<()> {
-    let model = a.sup.plant.load()?;
+    let Some(model) = a.sup.plant.load()? else {
+        return Ok(());
+    };
     let (sc, mut sup) = build_supervisor(&a.sup, &model)?;
     let n = node(a.sup.bus.node)?;
     let lockstep = !a.sup.bus.realtime;
@@ -686,7 +698,9 @@ pub struct BenchArgs {
 
 /// Prints lockstep cycles per second and bus load against the protocol's figure.
 pub fn bench(a: BenchArgs) -> Result<()> {
-    let model = a.plant.load()?;
+    let Some(model) = a.plant.load()? else {
+        return Ok(());
+    };
     let mut sc = Scenario::new(ScenarioKind::Stiffness, &model)?;
     sc.duration_s = a.seconds;
     let mut lab = Lab::new(&model, sc.clone(), &LabOptions::default())?;
