@@ -626,15 +626,11 @@ fn search_stick(model: &mut Model, p: &Prepared, e: usize, start: StickStart) {
     let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
     let set_vs = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_velocity = x;
     let set_d = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_exponent = x;
-    let mut vss: Vec<f64> = grid.iter().map(|s| s.stribeck_velocity).collect();
-    vss.sort_by(f64::total_cmp);
-    vss.dedup();
-    let mut ds: Vec<f64> = grid.iter().map(|s| s.stribeck_exponent).collect();
-    ds.sort_by(f64::total_cmp);
-    ds.dedup();
-    if let Some(d) = start.exponent {
-        ds = vec![d];
-    }
+    let vss = distinct(grid.iter().map(|s| s.stribeck_velocity));
+    let ds = match start.exponent {
+        Some(d) => vec![d],
+        None => distinct(grid.iter().map(|s| s.stribeck_exponent)),
+    };
     grid_search(model, p, e, &ds, &set_d, &vss, &set_vs);
 }
 
@@ -657,6 +653,14 @@ fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize, search_lead: bool)
     search_sign(model, p, e, &set_eps, &set_lead, search_lead);
 }
 
+/// The distinct values of a grid's shape coordinate, ascending.
+fn distinct(xs: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = xs.collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v
+}
+
 /// Where the Stribeck refit's searches start (see [`refit_all`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct StickStart {
@@ -677,13 +681,8 @@ impl StickStart {
     /// The starts of a Stribeck refit: everything searched; the lead held at 0; and the lead
     /// held at 0 with δ held at each exponent of the Stribeck shape grid (1 and 2).
     fn all(p: &Prepared) -> Vec<StickStart> {
-        let mut ds: Vec<f64> =
-            sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory())
-                .iter()
-                .map(|s| s.stribeck_exponent)
-                .collect();
-        ds.sort_by(f64::total_cmp);
-        ds.dedup();
+        let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
+        let ds = distinct(grid.iter().map(|s| s.stribeck_exponent));
         let mut out = vec![
             StickStart::SEARCHED,
             StickStart {
