@@ -829,11 +829,27 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     if !stribeck {
         return refit_from(model, p, StickStart::SEARCHED);
     }
+    // The starts are independent: one thread each (the choice below is in start order, so
+    // the result does not depend on which finishes first).
+    let fits: Vec<(Model, Result<(), fit::FitError>)> = std::thread::scope(|sc| {
+        let hs: Vec<_> = StickStart::all(p)
+            .into_iter()
+            .map(|start| {
+                let mut m = model.clone();
+                sc.spawn(move || {
+                    let r = refit_from(&mut m, p, start);
+                    (m, r)
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
     let mut best: Option<(f64, Model)> = None;
     let mut first_err = None;
-    for start in StickStart::all(p) {
-        let mut m = model.clone();
-        match refit_from(&mut m, p, start) {
+    for (m, r) in fits {
+        match r {
             Ok(()) => {
                 let rms = score(&m, p).rms;
                 let rms = if rms.is_nan() { f64::INFINITY } else { rms };
