@@ -430,6 +430,15 @@ fn fit_text(r: &FitReport) -> String {
             "validation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
             b.fit_percent, a.fit_percent, b.rms, a.rms, b.relative_error_percent, a.relative_error_percent
         ));
+        if a.rms > b.rms && r.after.rms <= r.before.rms {
+            s.push_str(&format!(
+                "note: the validation error rose ({:.1} % in RMS) while the estimation error fell: \
+                 the refit does not carry to the validation record — a shape the estimation \
+                 record does not pin down, or conditions it lacks (speeds, rests, loads). \
+                 `compare --model` on the validation file shows where the error lives.\n",
+                100.0 * (a.rms / b.rms - 1.0)
+            ));
+        }
     }
     s
 }
@@ -476,4 +485,39 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         println!("model written to {}", a.save_model.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::workbench::refine::Score;
+
+    fn score(rms: f64) -> Score {
+        Score {
+            fit_percent: 100.0 - rms,
+            rms,
+            relative_error_percent: rms,
+        }
+    }
+
+    fn report(est: (f64, f64), val: (f64, f64)) -> FitReport {
+        FitReport {
+            added: Some("stribeck".into()),
+            before: score(est.0),
+            after: score(est.1),
+            before_validation: Some(score(val.0)),
+            after_validation: Some(score(val.1)),
+            params: Vec::new(),
+        }
+    }
+
+    /// A refit that lowers the estimation error but raises the validation error says so;
+    /// one that lowers both does not.
+    #[test]
+    fn fit_text_flags_a_refit_that_does_not_carry_to_validation() {
+        let t = fit_text(&report((2.0, 1.0), (2.0, 2.5)));
+        assert!(t.contains("validation error rose (25.0 % in RMS)"), "{t}");
+        let t = fit_text(&report((2.0, 1.0), (2.0, 1.5)));
+        assert!(!t.contains("validation error rose"), "{t}");
+    }
 }
