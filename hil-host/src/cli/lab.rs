@@ -69,19 +69,18 @@ pub struct PlantChoice {
 }
 
 impl PlantChoice {
-    /// Loads the model; `None` after printing the preset names for `--preset list` (the
-    /// command then has nothing more to do and succeeds).
-    pub fn load(&self) -> Result<Option<Model>> {
+    /// Whether `--preset list` asked for the preset names (answered once, in `cli::run`,
+    /// before any command runs).
+    pub fn lists_presets(&self) -> bool {
+        self.model.is_none() && self.preset == "list"
+    }
+
+    /// Loads the model.
+    pub fn load(&self) -> Result<Model> {
         if let Some(p) = &self.model {
-            return Ok(Some(Model::load(p)?));
+            return Ok(Model::load(p)?);
         }
-        if self.preset == "list" {
-            for name in sim_plant::preset_names() {
-                println!("{name}");
-            }
-            return Ok(None);
-        }
-        sim_plant::preset(&self.preset).map(Some).ok_or_else(|| {
+        sim_plant::preset(&self.preset).ok_or_else(|| {
             anyhow!(
                 "unknown preset `{}`; one of: {}",
                 self.preset,
@@ -164,9 +163,7 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
 
 /// Runs the zero-setup demo.
 pub fn demo(a: DemoArgs) -> Result<()> {
-    let Some(model) = a.plant.load()? else {
-        return Ok(());
-    };
+    let model = a.plant.load()?;
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
@@ -375,9 +372,7 @@ fn print_plant_stats(st: &PlantStats) {
 
 /// Runs the plant node for `--seconds`.
 pub fn plant(a: PlantArgs) -> Result<()> {
-    let Some(model) = a.plant.load()? else {
-        return Ok(());
-    };
+    let model = a.plant.load()?;
     let sc = match &a.scenario {
         Some(s) => Some(Scenario::new(scenarios(s)?[0], &model)?),
         None => None,
@@ -488,9 +483,7 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
 
 /// Runs the supervisor until its script ends (or Ctrl-C).
 pub fn supervise(a: SuperviseArgs) -> Result<()> {
-    let Some(model) = a.plant.load()? else {
-        return Ok(());
-    };
+    let model = a.plant.load()?;
     let (_, mut sup) = build_supervisor(&a, &model)?;
     let mut bus = open(&a.bus)?;
     let stop = stop_on_ctrl_c();
@@ -562,9 +555,7 @@ pub struct RunArgs {
 
 /// Card, plant and supervisor as threads, each with its own handle on the bus.
 pub fn run(a: RunArgs) -> Result<()> {
-    let Some(model) = a.sup.plant.load()? else {
-        return Ok(());
-    };
+    let model = a.sup.plant.load()?;
     let (sc, mut sup) = build_supervisor(&a.sup, &model)?;
     let n = node(a.sup.bus.node)?;
     let lockstep = !a.sup.bus.realtime;
@@ -698,9 +689,7 @@ pub struct BenchArgs {
 
 /// Prints lockstep cycles per second and bus load against the protocol's figure.
 pub fn bench(a: BenchArgs) -> Result<()> {
-    let Some(model) = a.plant.load()? else {
-        return Ok(());
-    };
+    let model = a.plant.load()?;
     let mut sc = Scenario::new(ScenarioKind::Stiffness, &model)?;
     sc.duration_s = a.seconds;
     let mut lab = Lab::new(&model, sc.clone(), &LabOptions::default())?;

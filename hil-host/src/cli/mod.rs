@@ -65,8 +65,33 @@ pub fn main() -> std::process::ExitCode {
     }
 }
 
-/// Run a parsed command.
+impl Command {
+    /// The plant a lab command runs (`None` for commands without one).
+    fn plant(&self) -> Option<&lab::PlantChoice> {
+        match self {
+            Command::Demo(a) => Some(&a.plant),
+            Command::Run(a) => Some(&a.sup.plant),
+            Command::Plant(a) => Some(&a.plant),
+            Command::Supervise(a) => Some(&a.plant),
+            Command::Bench(a) => Some(&a.plant),
+            _ => None,
+        }
+    }
+}
+
+/// Run a parsed command. `--preset list` is a question, answered here for every command
+/// that takes a plant: the names on stdout, one per line, and nothing run.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    if cli
+        .command
+        .plant()
+        .is_some_and(lab::PlantChoice::lists_presets)
+    {
+        for name in sim_plant::preset_names() {
+            println!("{name}");
+        }
+        return Ok(());
+    }
     match cli.command {
         Command::Demo(a) => lab::demo(a),
         Command::Run(a) => lab::run(a),

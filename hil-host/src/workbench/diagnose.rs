@@ -31,8 +31,9 @@
 //!    that would rank above the verdict is ranked by its *motion form's* ERR instead, net of
 //!    the encoder noise ([`motion_form_err`]): its command-form column carries the recorded
 //!    input's own noise and can outrank a real friction effect by fitting it. Occam: if a
-//!    significant candidate with fewer fingerprint columns leaves the same trace (contributions correlated ≥ `ambiguity_corr`) and the top one
-//!    explains less than `min_err` more of the residual, the simpler one goes first.
+//!    significant candidate with fewer fingerprint columns leaves the same trace
+//!    (contributions correlated ≥ `ambiguity_corr`) and the top one explains less than
+//!    `min_err` more of the residual, the simpler one goes first.
 //! 5. **Ambiguity.** If another significant candidate's best-fit contribution (its partial
 //!    projection of the residual) correlates ≥ `ambiguity_corr` with the winner's and
 //!    explains nearly as much, both are named with an experiment that would separate them.

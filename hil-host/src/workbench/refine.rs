@@ -862,13 +862,13 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
             }
         }
     }
-    match (best, first_err) {
-        (Some((_, m)), _) => {
+    match best {
+        Some((_, m)) => {
             *model = m;
             Ok(())
         }
-        (None, Some(e)) => Err(e),
-        (None, None) => refit_from(model, p, StickStart::SEARCHED),
+        // Every start failed (`StickStart::all` is never empty): the first start's error.
+        None => first_err.map_or(Ok(()), Err),
     }
 }
 
