@@ -103,6 +103,31 @@ fn bad_input_gets_a_clear_error() {
         e.contains("stability guard") || e.contains("out of range"),
         "{e}"
     );
+    // A file that is not there: named, and the OS's reason given once (the error's own text
+    // and its source chain both carry it).
+    let io = ["--input", "u_Nm", "--output", "x_rad"];
+    let rec = std::env::temp_dir().join(format!("jointlab-cli-lab-{}.csv", std::process::id()));
+    let rows: String = (0..400)
+        .map(|k| format!("{},{},{}\n", k as f64 * 1e-3, (k as f64 * 0.01).sin(), 0.0))
+        .collect();
+    std::fs::write(&rec, format!("time_s,u_Nm,x_rad\n{rows}")).unwrap();
+    let rec = rec.to_str().unwrap();
+    for args in [
+        &["compare", "/nonexistent/rec.csv"][..],
+        &[
+            "fit",
+            rec,
+            "--model",
+            "/nonexistent/m.toml",
+            "--add",
+            "offset",
+        ][..],
+    ] {
+        let e = run(&[args, &io[..]].concat());
+        assert!(e.contains("/nonexistent/"), "{e}");
+        assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    }
+    let _ = std::fs::remove_file(rec);
 }
 
 #[test]

@@ -12,7 +12,9 @@
 //! static curves, LuGre states driven by either velocity (z_s scaled), the true stick state,
 //! hold columns (u, or the balancing torque u − J·a − b·v), wider-band velocities.
 //!
-//! Environment: `WB_ONLY=1` only the workbench's own refit (val/floor and fitted shapes);
+//! Environment: `STARTS=1` each start of the workbench's Stribeck refit on its own (est and
+//! val over the floors; `refine::refit_all` keeps the lowest est); `WB_ONLY=1` only the
+//! workbench's own refit (val/floor and fitted shapes);
 //! `DUMP=1` the workbench refit's validation residual by |v| band and its worst 50 ms windows,
 //! `RANGE=a:b` (`STRIDE=k`) the samples with the truth's band-limited friction beside the
 //! model's.
@@ -236,6 +238,28 @@ fn probe(seed: u64, t: &Trial) {
         t.floor_val,
         recs[0].p.stick_velocity
     );
+    // Each start of the refit on its own (est, val over the floor).
+    if std::env::var_os("STARTS").is_some() {
+        let mut m: Model = start_model(&[Family::Stribeck]);
+        let (pe, pv) = (&recs[0].p, &recs[1].p);
+        if refine::refit_all(&mut m, pe).is_ok() {
+            let _ = hil_host::workbench::residual::refit(&mut m, pe);
+            let shape = refine::best_shape(&m, pe, EffectKind::Stribeck).unwrap_or_default();
+            m.add(EffectKind::Stribeck, shape);
+            let mut line = String::from("  starts:");
+            for (k, (ms, r)) in refine::refit_each_start(&m, pe).iter().enumerate() {
+                if r.is_ok() {
+                    line += &format!(
+                        " s{k} est {:.4} sval {:.4}",
+                        refine::score(ms, pe).rms / t.floor_est,
+                        refine::score(ms, pv).rms / t.floor_val
+                    );
+                }
+            }
+            println!("{line}");
+        }
+        return;
+    }
     // The workbench's own refit.
     {
         let mut m: Model = start_model(&[Family::Stribeck]);

@@ -10,7 +10,7 @@ use crate::workbench::data::{self, Columns};
 use crate::workbench::diagnose::{self, Options};
 use crate::workbench::metrics;
 use crate::workbench::model::Model;
-use crate::workbench::refine::{self, AutoRun, AutoStep, FitReport};
+use crate::workbench::refine::{self, AutoRun, AutoStep, FitReport, Score};
 use crate::workbench::report::{self, Chart, Series};
 use crate::workbench::residual::{self, Mode, Prepared};
 
@@ -272,16 +272,17 @@ fn auto_text(run: &AutoRun) -> String {
         .unwrap_or(0)
         .max(13);
     let mut s = format!(
-        "{:>4}  {:<w$} {:>9} {:>12} {:>10} {:>12} {:>10}\n",
-        "step", "added", "fit %", "RMS", "Holm p", "val RMS", "val fit %"
+        "{:>4}  {:<w$} {:>9} {:>12} {:>7} {:>10} {:>12} {:>10}\n",
+        "step", "added", "fit %", "RMS", "×floor", "Holm p", "val RMS", "val fit %"
     );
     for st in &run.steps {
         s.push_str(&format!(
-            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>10} {:>12} {:>10}\n",
+            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>7.2} {:>10} {:>12} {:>10}\n",
             st.step,
             label(st),
             st.score.fit_percent,
             st.score.rms,
+            st.score.floor_ratio(),
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
             st.validation
                 .map(|v| format!("{:.4e}", v.rms))
@@ -416,20 +417,23 @@ fn fit_text(r: &FitReport) -> String {
             p.owner, p.name, p.value, p.sigma
         ));
     }
-    s.push_str(&format!(
-        "estimation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
-        r.before.fit_percent,
-        r.after.fit_percent,
-        r.before.rms,
-        r.after.rms,
-        r.before.relative_error_percent,
-        r.after.relative_error_percent
-    ));
+    let line = |name: &str, b: &Score, a: &Score| {
+        format!(
+            "{name}: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e} ({:.2} → {:.2}× the noise floor), \
+             rel. error {:.3} % → {:.3} %\n",
+            b.fit_percent,
+            a.fit_percent,
+            b.rms,
+            a.rms,
+            b.floor_ratio(),
+            a.floor_ratio(),
+            b.relative_error_percent,
+            a.relative_error_percent
+        )
+    };
+    s.push_str(&line("estimation", &r.before, &r.after));
     if let (Some(b), Some(a)) = (r.before_validation, r.after_validation) {
-        s.push_str(&format!(
-            "validation: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e}, rel. error {:.3} % → {:.3} %\n",
-            b.fit_percent, a.fit_percent, b.rms, a.rms, b.relative_error_percent, a.relative_error_percent
-        ));
+        s.push_str(&line("validation", &b, &a));
         if a.rms > b.rms && r.after.rms <= r.before.rms {
             s.push_str(&format!(
                 "note: the validation error rose ({:.1} % in RMS) while the estimation error fell: \
@@ -441,6 +445,32 @@ fn fit_text(r: &FitReport) -> String {
         }
     }
     s
+}
+
+/// What to do next after a fit, from where its error sits against the noise floor. Kept out
+/// of [`fit_text`] because it needs to know the record (a load encoder or not) and the
+/// saved model's path.
+fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<String> {
+    let left = r.after.floor_ratio();
+    if !left.is_finite() || left <= diagnose::AT_FLOOR {
+        return None;
+    }
+    let mut s = format!(
+        "note: the estimation error is still {left:.2}× its noise floor; `diagnose --model {}` \
+         ranks what the model still lacks.",
+        model_file.display()
+    );
+    if r.added.as_deref() == Some("backlash") && !load_encoder {
+        s.push_str(
+            " From the motor encoder alone the load's path through the gap is inferred (a play \
+             operator); a light motor that chatters against the load within one encoder count \
+             leaves that above the floor whatever the fit. A load-side encoder \
+             (`--load-output COL`) measures the deflection instead (docs/workbench.md, \
+             *With a load-side encoder*).",
+        );
+    }
+    s.push('\n');
+    Some(s)
 }
 
 /// Run `fit`.
@@ -483,6 +513,9 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     } else {
         print!("{}", fit_text(&r));
         println!("model written to {}", a.save_model.display());
+        if let Some(n) = fit_advice(&r, !p.load_position.is_empty(), &a.save_model) {
+            print!("{n}");
+        }
     }
     Ok(())
 }
@@ -497,6 +530,7 @@ mod tests {
             fit_percent: 100.0 - rms,
             rms,
             relative_error_percent: rms,
+            noise_floor_rms: 1.0,
         }
     }
 
@@ -509,6 +543,28 @@ mod tests {
             after_validation: Some(score(val.1)),
             params: Vec::new(),
         }
+    }
+
+    /// `fit` points at `diagnose` only while the error is above its floor, and at a
+    /// load-side encoder only for backlash fitted without one.
+    #[test]
+    fn fit_advice_follows_the_floor_and_the_encoders() {
+        let f = Path::new("m.toml");
+        assert!(fit_advice(&report((2.0, 1.1), (2.0, 1.1)), false, f).is_none());
+        let n = fit_advice(&report((2.0, 1.5), (2.0, 1.5)), false, f).expect("above the floor");
+        assert!(
+            n.contains("1.50× its noise floor") && n.contains("diagnose --model m.toml"),
+            "{n}"
+        );
+        assert!(!n.contains("--load-output"), "{n}");
+        let mut b = report((2.0, 1.8), (2.0, 1.8));
+        b.added = Some("backlash".into());
+        let n = fit_advice(&b, false, f).expect("above the floor");
+        assert!(n.contains("--load-output"), "{n}");
+        let n = fit_advice(&b, true, f).expect("above the floor");
+        assert!(!n.contains("--load-output"), "{n}");
+        let t = fit_text(&b);
+        assert!(t.contains("(2.00 → 1.80× the noise floor)"), "{t}");
     }
 
     /// A refit that lowers the estimation error but raises the validation error says so;

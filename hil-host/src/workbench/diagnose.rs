@@ -734,9 +734,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     }
 }
 
-/// RMS of the baseline residual, in units of its noise floor, up to which the residual counts
-/// as "at the floor" for [`encoder_limited`].
-const AT_FLOOR: f64 = 1.2;
+/// RMS of a residual, in units of its noise floor, up to which it counts as "at the floor":
+/// for [`encoder_limited`], and for `fit`'s hint to look for another effect.
+pub const AT_FLOOR: f64 = 1.2;
 
 /// A warning when a verdict rests on a residual that is at its noise floor and that floor is
 /// mostly the encoder's noise through the differentiator: that noise is a function of the

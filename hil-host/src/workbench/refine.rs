@@ -36,6 +36,17 @@ pub struct Score {
     pub rms: f64,
     /// ‖e‖/‖u‖ %.
     pub relative_error_percent: f64,
+    /// The equation error's noise floor on this record at this model's inertia
+    /// ([`Prepared::equation_floor`]): an RMS near it leaves nothing for another effect to
+    /// explain.
+    pub noise_floor_rms: f64,
+}
+
+impl Score {
+    /// RMS over the noise floor (1 = nothing left but noise).
+    pub fn floor_ratio(&self) -> f64 {
+        self.rms / self.noise_floor_rms
+    }
 }
 
 /// Equation-error score of a model on prepared data (no refit).
@@ -48,6 +59,7 @@ pub fn score(model: &Model, p: &Prepared) -> Score {
         fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
         rms: (ss / n).sqrt(),
         relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
+        noise_floor_rms: p.equation_floor(model.inertia.value),
     }
 }
 
@@ -829,23 +841,7 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     if !stribeck {
         return refit_from(model, p, StickStart::SEARCHED);
     }
-    // The starts are independent: one thread each (the choice below is in start order, so
-    // the result does not depend on which finishes first).
-    let fits: Vec<(Model, Result<(), fit::FitError>)> = std::thread::scope(|sc| {
-        let hs: Vec<_> = StickStart::all(p)
-            .into_iter()
-            .map(|start| {
-                let mut m = model.clone();
-                sc.spawn(move || {
-                    let r = refit_from(&mut m, p, start);
-                    (m, r)
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
-    });
+    let fits = refit_each_start(model, p);
     let mut best: Option<(f64, Model)> = None;
     let mut first_err = None;
     for (m, r) in fits {
@@ -870,6 +866,27 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
         // Every start failed (`StickStart::all` is never empty): the first start's error.
         None => first_err.map_or(Ok(()), Err),
     }
+}
+
+/// The Stribeck refit from each of [`StickStart::all`], in start order (one thread each: the
+/// order, not which finishes first, decides ties in [`refit_all`]).
+#[doc(hidden)]
+pub fn refit_each_start(model: &Model, p: &Prepared) -> Vec<(Model, Result<(), fit::FitError>)> {
+    std::thread::scope(|sc| {
+        let hs: Vec<_> = StickStart::all(p)
+            .into_iter()
+            .map(|start| {
+                let mut m = model.clone();
+                sc.spawn(move || {
+                    let r = refit_from(&mut m, p, start);
+                    (m, r)
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
 }
 
 /// [`refit_all`] from one start of the Stribeck searches.
