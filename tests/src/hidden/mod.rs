@@ -464,6 +464,15 @@ pub struct Trial {
     pub motor: [Vec<f64>; 2],
 }
 
+/// A record whose loop stayed bounded (finite, |u| < 10⁶, |x| < 50 rad).
+fn bounded(rec: &Recording) -> bool {
+    rec.output
+        .iter()
+        .chain(&rec.input)
+        .all(|x| x.is_finite() && x.abs() < 1e6)
+        && rec.output.iter().all(|x| x.abs() < 50.0)
+}
+
 /// Generate a trial with `families` hidden, each scaled to `target_rho` on its own. `None` if
 /// the drawn loop is unstable with the effect (a delay or backlash can destabilise the PD
 /// loop; such runs are not a diagnosis problem and are counted separately).
@@ -492,6 +501,12 @@ pub fn generate_with(
     let noise = NoiseAt::for_trial(families);
     let twin_e = record(&base, &d.est, noise, "twin-est");
     let twin_v = record(&base, &d.val, noise, "twin-val");
+    // The twins are the floor's reference: a twin whose loop diverges (a PD on a stiff
+    // two-mass base can go unstable on one excitation and not the other) leaves the trial
+    // without a floor, so the draw counts as unstable like one the effect destabilises.
+    if !bounded(&twin_e) || !bounded(&twin_v) {
+        return None;
+    }
     let pe0 = Prepared::new(&twin_e, cutoff());
     let (floor_est, m0) = fitted_rms(&start, &pe0);
     let pv0 = Prepared::new(&twin_v, cutoff());
@@ -570,13 +585,6 @@ pub fn generate_with(
     );
     let (b, _) = fitted_rms(&start, &Prepared::new(&est, cutoff()));
     let r = rho(b, floor_est);
-    let bounded = |rec: &Recording| {
-        rec.output
-            .iter()
-            .chain(&rec.input)
-            .all(|x| x.is_finite() && x.abs() < 1e6)
-            && rec.output.iter().all(|x| x.abs() < 50.0)
-    };
     if !r.is_finite() || r > 20.0 * target_rho.max(1.0) || !bounded(&est) || !bounded(&val) {
         return None;
     }
