@@ -371,7 +371,10 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 "diagnose --auto",
                 &[
                     ("steps".into(), table.clone()),
-                    ("final diagnosis".into(), run.last.to_text()),
+                    (
+                        "final diagnosis".into(),
+                        format!("stopped: {}\n{}", run.stop, run.last.to_text()),
+                    ),
                     ("final model".into(), ptext),
                     ("final metrics".into(), m.to_text()),
                 ],
@@ -387,13 +390,15 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             serde_json::json!({
                 "residual_mode": run.last.residual_mode,
                 "steps": run.steps,
+                "stop": run.stop,
                 "final": run.last.to_json(),
                 "model": model.to_sim(),
             })
         );
     } else {
         print!("{table}");
-        println!("final: {}", run.last.verdict.text);
+        println!("stopped: {}", run.stop);
+        println!("final diagnosis: {}", run.last.verdict.text);
         if let Some(r) = report_path {
             println!("report: {}", r.display());
         }

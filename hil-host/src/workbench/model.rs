@@ -119,6 +119,17 @@ impl Model {
         self.name = format!("{} + {}", self.name, kind.name());
     }
 
+    /// Remove the `index`-th effect, and its name from the model's name (a saved model's
+    /// name lists what it holds).
+    pub fn remove(&mut self, index: usize) -> EffectEntry {
+        let e = self.effects.remove(index);
+        let tag = format!(" + {}", e.kind.name());
+        if let Some(at) = self.name.rfind(&tag) {
+            self.name.replace_range(at..at + tag.len(), "");
+        }
+        e
+    }
+
     /// All parameters, in design order: inertia then effects.
     pub fn params(&self) -> Vec<&Param> {
         std::iter::once(&self.inertia)
@@ -159,10 +170,12 @@ impl Model {
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let file = path.display().to_string();
         let text = self.to_sim().to_toml_string();
-        check_physical(&text, &file).map_err(|e| ModelError::Unsupported {
-            file: file.clone(),
-            message: format!("not written, the fitted model is not physical: {e}"),
-        })?;
+        self.physical_split()
+            .and_then(|()| check_physical(&text, &file))
+            .map_err(|e| ModelError::Unsupported {
+                file: file.clone(),
+                message: format!("not written, the fitted model is not physical: {e}"),
+            })?;
         std::fs::write(path, text)
             .map_err(|source| sim_plant::model::ModelError::Io { file, source })?;
         Ok(())
@@ -172,7 +185,44 @@ impl Model {
     /// its physical range); the reason if not. `--auto` only keeps models that pass, so what it
     /// finds can always be saved.
     pub fn physical(&self) -> Result<(), String> {
+        self.physical_split()?;
         check_physical(&self.to_sim().to_toml_string(), "fitted model")
+    }
+
+    /// A compliance amplitude must be −J2/J1 < 0 for the file's two masses to exist: a
+    /// positive one (the column used as a broadband correction) has no two-mass plant, and
+    /// writing |α| would save a different model from the one that was scored.
+    ///
+    /// Backlash and compliance both name the load's inertia J2 (the file's one
+    /// `plant.output_inertia`): fitted apart they disagree, and the file would hold only one
+    /// of them, so such a model is refused too.
+    pub fn physical_split(&self) -> Result<(), String> {
+        let first = |k: EffectKind| {
+            self.effects
+                .iter()
+                .find(|e| e.kind == k)
+                .and_then(|e| e.params.first())
+        };
+        let compliance = first(EffectKind::Compliance);
+        if let Some(p) = compliance.filter(|p| p.value > 0.0) {
+            return Err(format!(
+                "compliance {} = {:+.4e} is positive: it is −J2/J1 of a two-mass joint, so no \
+                 plant has it (the column fitted a broadband correction, not a transmission mode)",
+                p.name, p.value
+            ));
+        }
+        if let (Some(c), Some(b)) = (compliance, first(EffectKind::Backlash)) {
+            let ratio = -c.value;
+            let j2 = self.inertia.value * ratio / (1.0 + ratio);
+            if (j2 - b.value).abs() > 1e-9 * self.inertia.value.abs() {
+                return Err(format!(
+                    "backlash's load inertia {} = {:.4e} and compliance's split J2 = {j2:.4e} \
+                     differ: the joint has one load, and a model file holds one J2",
+                    b.name, b.value
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The equation-error view of a simulator model.
@@ -342,8 +392,9 @@ impl Model {
             match e.kind {
                 EffectKind::Backlash => j_far = Some((e.params[0].value, e.params[0].free)),
                 EffectKind::Compliance if j_far.is_none() => {
-                    // −J2/J1 = α  ⇒  J2 = J·|α|/(1 + |α|).
-                    let ratio = e.params[0].value.abs();
+                    // −J2/J1 = α  ⇒  J2 = J·|α|/(1 + |α|) (α > 0 is refused on saving,
+                    // see `physical_split`).
+                    let ratio = -e.params[0].value;
                     let t = &sim.plant.output_inertia;
                     j_far = Some(if ratio > 0.0 && ratio.is_finite() {
                         (self.inertia.value * ratio / (1.0 + ratio), e.params[0].free)
@@ -512,6 +563,48 @@ mod tests {
             assert_eq!(a.shape, b.shape, "{}", a.kind.name());
             assert_eq!(a.params, b.params, "{}", a.kind.name());
         }
+    }
+
+    /// Removing an effect takes it out of the name too (the name lists what a saved model
+    /// holds), and only that one.
+    #[test]
+    fn remove_keeps_the_name_true() {
+        let mut m = Model::baseline();
+        m.add(EffectKind::Coulomb, Shape::default());
+        m.add(EffectKind::Offset, Shape::default());
+        let before = m.name.clone();
+        let e = m.remove(1);
+        assert_eq!(e.kind, EffectKind::Coulomb);
+        assert_eq!(m.name, before.replace(" + coulomb", ""));
+        assert!(m.name.ends_with(" + offset"), "{}", m.name);
+    }
+
+    /// A model file holds one load inertia: a positive compliance amplitude (no two-mass
+    /// plant) and a backlash whose J2 disagrees with compliance's split are refused, naming
+    /// the parameter, rather than saved as a different model.
+    #[test]
+    fn a_split_no_file_can_hold_is_refused() {
+        let mut m = Model::baseline();
+        m.inertia.value = 0.03;
+        let shape = Shape {
+            compliance_frequency: 25.0,
+            compliance_damping: 0.05,
+            ..Shape::default()
+        };
+        m.add(EffectKind::Compliance, shape);
+        m.effects[1].params[0].value = 0.5;
+        let e = m.physical().unwrap_err();
+        assert!(e.contains("inertia_ratio") && e.contains("positive"), "{e}");
+        let path = std::env::temp_dir().join(format!("jointlab-split-{}.toml", std::process::id()));
+        assert!(m.save(&path).is_err() && !path.exists());
+        m.effects[1].params[0].value = -0.5; // J2 = 0.01
+        assert!(m.physical().is_ok());
+        m.add(EffectKind::Backlash, Shape::default());
+        m.effects[2].params[0].value = 0.02;
+        let e = m.physical().unwrap_err();
+        assert!(e.contains("load_inertia"), "{e}");
+        m.effects[2].params[0].value = 0.01;
+        assert!(m.physical().is_ok(), "{:?}", m.physical());
     }
 
     #[test]

@@ -134,10 +134,16 @@ const NOISE_SD_MARGIN: f64 = 3.0;
 /// Only for models with a compliance term: elsewhere the motion-linear columns are the
 /// broadband acceleration and velocity, whose passed noise hardly moves with any shape, and
 /// the plain RSS (at the compensated amplitudes) is kept.
+///
+/// A compliance amplitude that comes out positive scores ∞: it is −J2/J1, and a shape at
+/// which the column only fits with the wrong sign is a broadband correction no two-mass
+/// joint makes (the model could not be saved, see `Model::physical`).
 fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
     let noise_aware = m.has(EffectKind::Compliance);
     residual::refit(m, p).map_or(f64::INFINITY, |f| {
-        if noise_aware {
+        if noise_aware && m.physical_split().is_err() {
+            f64::INFINITY
+        } else if noise_aware {
             f.rss - f.noise_rss + NOISE_SD_MARGIN * f.noise_rss_sd
         } else {
             f.rss
@@ -935,7 +941,7 @@ fn refit_from(model: &mut Model, p: &Prepared, start: StickStart) -> Result<(), 
     );
     let mut m = apply(&lm.x);
     if let Ok(f) = residual::refit(&mut m, p) {
-        if f.rss < before {
+        if f.rss < before && m.physical_split().is_ok() {
             *model = m;
         }
     }
@@ -1029,6 +1035,9 @@ pub struct AutoRun {
     pub steps: Vec<AutoStep>,
     /// Final diagnosis.
     pub last: Diagnosis,
+    /// Why `--auto` stopped (its final diagnosis may still name a candidate: one it could not
+    /// add, or the step limit).
+    pub stop: String,
 }
 
 /// Rank → add → refit until nothing significant is left (at most `max_steps` additions).
@@ -1083,7 +1092,11 @@ pub fn auto(
             }
             let moves = swap_pass(model, p, start_len, &seen)?;
             if moves.is_empty() {
-                return Ok(AutoRun { steps, last: d });
+                return Ok(AutoRun {
+                    steps,
+                    last: d,
+                    stop: "nothing significant is left".into(),
+                });
             }
             let sc = score(model, p);
             let val = validation.map(|v| score(model, v));
@@ -1104,16 +1117,33 @@ pub fn auto(
                 });
             }
             let last = diagnose::diagnose(model, p, opts);
-            return Ok(AutoRun { steps, last });
+            return Ok(AutoRun {
+                steps,
+                last,
+                stop: "nothing significant was left before the closing swap pass (a swap \
+                       changes the rest of the fit, so the final diagnosis may differ)"
+                    .into(),
+            });
         };
         if steps.len() > max_steps {
-            return Ok(AutoRun { steps, last: d });
+            return Ok(AutoRun {
+                steps,
+                last: d,
+                stop: format!("reached --max-steps {max_steps}"),
+            });
         }
         let Some((c, fitted)) = choose(model, p, &d, &name)? else {
             // Every leading candidate fits only with a parameter outside its physical range,
             // or leaves the model worse by BIC once refitted (the last diagnosis says which
             // was next): stop with the model as it is.
-            return Ok(AutoRun { steps, last: d });
+            return Ok(AutoRun {
+                steps,
+                last: d,
+                stop: format!(
+                    "{name} (and every close candidate) fits only with a parameter outside its \
+                     physical range, or raises BIC once refitted"
+                ),
+            });
         };
         *model = fitted;
         steps.push(AutoStep {
@@ -1305,7 +1335,7 @@ fn swap_pass(
             let old = &model.effects[i];
             let (old_kind, old_spent) = (old.kind, spent_params(old.kind, old.params.len()));
             let mut base = model.clone();
-            base.effects.remove(i);
+            base.remove(i);
             let mut m = base.clone();
             refit_all(&mut m, p)?;
             consider(m, None, old_kind.name().into());
