@@ -108,7 +108,14 @@ fn bad_input_gets_a_clear_error() {
     let io = ["--input", "u_Nm", "--output", "x_rad"];
     let rec = std::env::temp_dir().join(format!("jointlab-cli-lab-{}.csv", std::process::id()));
     let rows: String = (0..400)
-        .map(|k| format!("{},{},{}\n", k as f64 * 1e-3, (k as f64 * 0.01).sin(), 0.0))
+        .map(|k| {
+            format!(
+                "{},{},{}\n",
+                k as f64 * 1e-3,
+                (k as f64 * 0.01).sin(),
+                (k as f64 * 0.01).cos()
+            )
+        })
         .collect();
     std::fs::write(&rec, format!("time_s,u_Nm,x_rad\n{rows}")).unwrap();
     let rec = rec.to_str().unwrap();
@@ -126,6 +133,19 @@ fn bad_input_gets_a_clear_error() {
         let e = run(&[args, &io[..]].concat());
         assert!(e.contains("/nonexistent/"), "{e}");
         assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    }
+    // Options out of range, or meaningful only with --auto, are refused before any work.
+    for (args, what) in [
+        (
+            &["diagnose", rec, "--alpha", "2"][..],
+            "strictly between 0 and 1",
+        ),
+        (&["diagnose", rec, "--cutoff", "600"][..], "Nyquist"),
+        (&["compare", rec, "--period", "0"][..], "above 0"),
+        (&["diagnose", rec, "--validate", rec][..], "--auto"),
+    ] {
+        let e = run(&[args, &io[..]].concat());
+        assert!(e.contains(what), "{args:?}: {e}");
     }
     let _ = std::fs::remove_file(rec);
 }

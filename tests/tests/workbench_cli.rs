@@ -90,6 +90,38 @@ fn csv_errors_say_file_line_column() {
             assert!(e.contains("column `"), "{e}");
         }
     }
+    // Whole-record defects: a gap in time (rows dropped at line 42) and a column that never
+    // changes; jitter within 3× the median interval is accepted.
+    let row = |k: usize, t: f64, u: f64| format!("{t},{u},{}\n", (k as f64 * 0.1).sin());
+    let mut gap = String::from("time_s,u_N,y_m\n");
+    let mut flat = gap.clone();
+    let mut jitter = gap.clone();
+    for k in 0..100 {
+        let t = k as f64 * 1e-3 + if k >= 40 { 5e-3 } else { 0.0 };
+        gap.push_str(&row(k, t, (k as f64).cos()));
+        flat.push_str(&row(k, k as f64 * 1e-3, 0.5));
+        jitter.push_str(&row(
+            k,
+            (k as f64 + 0.4 * (k % 2) as f64) * 1e-3,
+            (k as f64).cos(),
+        ));
+    }
+    for (name, body, what) in [
+        (
+            "gap.csv",
+            gap,
+            "gap.csv:42: column `time_s`: the sample interval",
+        ),
+        ("flat.csv", flat, "column `u_N` is 0.5 on every row"),
+    ] {
+        let p = d.join(name);
+        std::fs::write(&p, body).unwrap();
+        let e = data::load(&p, &cols).unwrap_err().to_string();
+        assert!(e.contains(what), "{e}");
+    }
+    let p = d.join("jitter.csv");
+    std::fs::write(&p, jitter).unwrap();
+    assert!(data::load(&p, &cols).is_ok());
 }
 
 #[test]

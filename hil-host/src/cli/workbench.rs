@@ -93,7 +93,26 @@ impl DataArgs {
     }
     fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
         let rec = data::load(file, &self.columns())?;
+        if let Some(fc) = self.cutoff {
+            let nyquist = 0.5 / rec.dt;
+            if !(fc.is_finite() && fc > 0.0 && fc < nyquist) {
+                bail!(
+                    "--cutoff {fc}: the differentiator's cut-off must be above 0 and below the \
+                     Nyquist frequency of {} ({nyquist:.4} Hz)",
+                    file.display()
+                );
+            }
+        }
         Ok(Prepared::new(&rec, self.cutoff))
+    }
+    /// The input's unit as the charts label it (the column's unit, times `--input-gain`).
+    fn input_unit(&self) -> String {
+        let u = data::unit_of(&self.input).0;
+        if self.input_gain == 1.0 {
+            u.to_string()
+        } else {
+            format!("{u}×{}", self.input_gain)
+        }
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
@@ -108,6 +127,26 @@ impl DataArgs {
     }
 }
 
+/// A probability strictly between 0 and 1 (`--alpha`).
+fn probability(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("`{s}`: {e}"))?;
+    if x > 0.0 && x < 1.0 {
+        Ok(x)
+    } else {
+        Err(format!("{x} is not a probability strictly between 0 and 1"))
+    }
+}
+
+/// A finite number above 0 (`--period`).
+fn positive(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("`{s}`: {e}"))?;
+    if x.is_finite() && x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("{x} must be a finite number above 0"))
+    }
+}
+
 /// `compare` options.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
@@ -118,7 +157,7 @@ pub struct CompareArgs {
     #[arg(long, value_enum, default_value = "equation")]
     pub residual: ResidualArg,
     /// Period for folding the residual over position (default: travel / 10).
-    #[arg(long)]
+    #[arg(long, value_parser = positive)]
     pub period: Option<f64>,
     /// Directory for plots and report.html.
     #[arg(long, default_value = "workbench-report")]
@@ -149,10 +188,10 @@ pub struct DiagnoseArgs {
     #[arg(long)]
     pub auto: bool,
     /// Validation recording (same columns) scored at every `--auto` step.
-    #[arg(long)]
+    #[arg(long, requires = "auto")]
     pub validate: Option<PathBuf>,
     /// Family-wise error rate.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = probability)]
     pub alpha: f64,
     /// Smallest fraction of residual variance an effect must explain to be added.
     #[arg(long, default_value_t = 0.01)]
@@ -161,13 +200,13 @@ pub struct DiagnoseArgs {
     #[arg(long, default_value_t = 0.25)]
     pub min_rho: f64,
     /// Most effects `--auto` adds.
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = 6, requires = "auto")]
     pub max_steps: usize,
     /// Write the `--auto` model here.
-    #[arg(long)]
+    #[arg(long, requires = "auto")]
     pub save_model: Option<PathBuf>,
     /// Directory for the `--auto` plot and report.
-    #[arg(long)]
+    #[arg(long, requires = "auto")]
     pub out: Option<PathBuf>,
 }
 
@@ -209,12 +248,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     };
     let m = metrics::compute(&res, a.period);
     let rec_units = if mode == Mode::Equation {
-        let u = data::unit_of(&a.data.input).0;
-        if a.data.input_gain == 1.0 {
-            u.to_string()
-        } else {
-            format!("{u}×{}", a.data.input_gain)
-        }
+        a.data.input_unit()
     } else {
         data::unit_of(&a.data.output).0.to_string()
     };
@@ -271,6 +305,12 @@ fn auto_text(run: &AutoRun) -> String {
         .max()
         .unwrap_or(0)
         .max(13);
+    // One floor for the whole column (the final model's: the floor's encoder part scales
+    // with the fitted inertia, and a per-row floor could rise while the RMS falls).
+    let floor = run
+        .steps
+        .last()
+        .map_or(f64::NAN, |s| s.score.noise_floor_rms);
     let mut s = format!(
         "{:>4}  {:<w$} {:>9} {:>12} {:>7} {:>10} {:>12} {:>10}\n",
         "step", "added", "fit %", "RMS", "×floor", "Holm p", "val RMS", "val fit %"
@@ -282,7 +322,7 @@ fn auto_text(run: &AutoRun) -> String {
             label(st),
             st.score.fit_percent,
             st.score.rms,
-            st.score.floor_ratio(),
+            st.score.rms / floor,
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
             st.validation
                 .map(|v| format!("{:.4e}", v.rms))
@@ -364,7 +404,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         let res = residual::equation_error(&model, &p);
         let m = metrics::compute(&res, None);
         let mut charts = vec![chart];
-        charts.extend(report::charts(&res, &m, data::unit_of(&a.data.input).0));
+        charts.extend(report::charts(&res, &m, &a.data.input_unit()));
         report_path = Some(
             report::write(
                 dir,
@@ -430,7 +470,7 @@ fn fit_text(r: &FitReport) -> String {
             a.fit_percent,
             b.rms,
             a.rms,
-            b.floor_ratio(),
+            b.rms / a.noise_floor_rms,
             a.floor_ratio(),
             b.relative_error_percent,
             a.relative_error_percent

@@ -55,6 +55,37 @@ pub enum DataError {
         /// Value.
         value: f64,
     },
+    /// The sample interval is not uniform (a gap, or a jump in the clock).
+    #[error(
+        "{file}:{line}: column `{column}`: the sample interval {step} s is far from the \
+         record's {median} s (over 3× or under a third: a gap or a jump in time); the \
+         workbench needs uniform sampling — resample the record first"
+    )]
+    UnevenSampling {
+        /// File.
+        file: PathBuf,
+        /// Line of the sample after the odd interval.
+        line: u64,
+        /// Time column.
+        column: String,
+        /// The odd interval [s].
+        step: f64,
+        /// The record's median interval [s].
+        median: f64,
+    },
+    /// A column holds one value throughout: there is no excitation (or no motion) to fit.
+    #[error(
+        "{file}: column `{column}` is {value} on every row (after --input-gain): nothing moves \
+         or drives the joint, so there is nothing to fit"
+    )]
+    Constant {
+        /// File.
+        file: PathBuf,
+        /// Column.
+        column: String,
+        /// Its one value.
+        value: f64,
+    },
     /// Time does not strictly increase.
     #[error("{file}:{line}: column `{column}`: time {value} does not increase (previous {prev})")]
     NonMonotonicTime {
@@ -224,6 +255,34 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
             need: 50,
         });
     }
+    // Uniform sampling: the differentiator and every fingerprint assume one sample period,
+    // so a gap (dropped rows) or a jump in the clock would silently bend the fit. Jitter is
+    // tolerated (the XL330 servo records in ../shared/data/real reach 1.74× their median
+    // interval); a gap of two or more samples is not.
+    let mut gaps: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(|a, b| a.total_cmp(b));
+    let median = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0);
+    for (k, w) in time.windows(2).enumerate() {
+        let step = w[1] - w[0];
+        if !(median / 3.0..=3.0 * median).contains(&step) {
+            return Err(DataError::UnevenSampling {
+                file,
+                line: lines.get(k + 1).copied().unwrap_or(0),
+                column: cols.time.clone(),
+                step,
+                median,
+            });
+        }
+    }
+    for (column, x) in [(&cols.input, &input), (&cols.output, &output)] {
+        if x.iter().all(|v| *v == x[0]) {
+            return Err(DataError::Constant {
+                file,
+                column: column.clone(),
+                value: x[0],
+            });
+        }
+    }
     let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
     let in_unit = if cols.input_gain != 1.0 {
         format!("{uu}×{}", cols.input_gain)
@@ -330,7 +389,7 @@ mod tests {
         let mut csv = String::from("time_s,torque_Nm,q_rad,out_deg\n");
         for k in 0..60 {
             let t = k as f64 * 1e-3;
-            csv += &format!("{t},{},{},{}\n", 0.5, 30.0 * t, t.to_degrees());
+            csv += &format!("{t},{},{},{}\n", 0.5 + t, 30.0 * t, t.to_degrees());
         }
         std::fs::write(&path, csv).expect("write csv");
         let cols = Columns {
@@ -347,6 +406,6 @@ mod tests {
                 "sample {k}: motor {q} vs geared load {l}"
             );
         }
-        assert!(rec.input.iter().all(|&u| u == 0.5));
+        assert!(rec.input.iter().zip(&rec.time).all(|(&u, &t)| u == 0.5 + t));
     }
 }
