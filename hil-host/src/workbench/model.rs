@@ -248,7 +248,9 @@ impl Model {
                 name: "inertia".into(),
                 value: j,
                 free: sim.motor.inertia.free,
-                sigma: sim.fit.inertia_sigma,
+                // A fixed value is given, not estimated: the fit record's σ (of whatever
+                // value was fitted then) does not belong to it.
+                sigma: sim.fit.inertia_sigma.filter(|_| sim.motor.inertia.free),
             },
             effects: Vec::new(),
             template: Some(sim.clone()),
@@ -310,7 +312,7 @@ impl Model {
                 p.free = free;
                 p.sigma = record
                     .and_then(|r| r.sigma.get(i).copied())
-                    .filter(|s| s.is_finite());
+                    .filter(|s| s.is_finite() && free);
             }
             model.effects.push(entry);
         }
@@ -563,6 +565,23 @@ mod tests {
             assert_eq!(a.shape, b.shape, "{}", a.kind.name());
             assert_eq!(a.params, b.params, "{}", a.kind.name());
         }
+    }
+
+    /// A parameter fixed in the file is given, not estimated: the σ its fit record holds
+    /// (for the value fitted then) is not shown against it.
+    #[test]
+    fn a_fixed_parameter_has_no_sigma() {
+        let mut m = fitted();
+        m.inertia.free = false;
+        let sim = sim_plant::Model::from_toml_str(&m.to_sim().to_toml_string(), "f.toml").unwrap();
+        let back = Model::from_sim(&sim).unwrap();
+        assert_eq!(back.inertia.sigma, None);
+        let offset = back
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Offset)
+            .unwrap();
+        assert_eq!(offset.params[0].sigma, Some(0.21));
     }
 
     /// Removing an effect takes it out of the name too (the name lists what a saved model
