@@ -153,6 +153,12 @@ fn diagnose_fit_and_compare_end_to_end() {
     for k in ["fit_percent", "rms", "noise_floor_rms", "ljung_box_p"] {
         assert!(j["baseline"][k].is_f64(), "baseline.{k}");
     }
+    // The baseline diagnose reports is the model's own score — what compare, fit and --auto
+    // print for it (the same inertia, the same floor).
+    let own = refine::score(&model, &p);
+    assert_eq!(dg.baseline.rms, own.rms);
+    assert_eq!(dg.baseline.fit_percent, own.fit_percent);
+    assert_eq!(dg.baseline.noise_floor_rms, own.noise_floor_rms);
     let c0 = &j["candidates"][0];
     assert_eq!(c0["rank"], 1);
     assert!(c0["statistic"].is_f64() && c0["p_value"].is_f64() && c0["effect"].is_string());

@@ -246,6 +246,15 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         Mode::Equation => residual::equation_error(&model, &p),
         Mode::Output => residual::output_error(&model, &p),
     };
+    if let Some(k) = res.predicted.iter().position(|y| !y.is_finite()) {
+        bail!(
+            "--residual output: the model's simulation from the measured input diverged at \
+             t = {:.4} s — the model is not stable open loop on this input (a closed-loop \
+             record needs its controller around the model); the equation-error residual \
+             (the default) has no such limit",
+            res.time.get(k).copied().unwrap_or(f64::NAN)
+        );
+    }
     let m = metrics::compute(&res, a.period);
     let rec_units = if mode == Mode::Equation {
         a.data.input_unit()
@@ -282,6 +291,14 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     } else {
         println!("model: {}\n{}", model.name, ptext);
         print!("{}", m.to_text());
+        if mode == Mode::Output && m.fit_percent < 0.0 {
+            println!(
+                "note: fit below 0 %: the model simulated open loop from the measured input \
+                 drifts away from the record. On closed-loop data (a controller closed the \
+                 loop while recording) the output error needs that controller around the \
+                 model; the equation error (the default) does not."
+            );
+        }
         println!("report: {}", html.display());
     }
     Ok(())

@@ -498,7 +498,6 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let base = fit::least_squares(x0, &d.y).expect("enough samples for the current model");
     let e = &base.residual;
     let rss = base.rss.max(1e-300);
-    let pred: Vec<f64> = p.input.iter().zip(e).map(|(u, r)| u - r).collect();
     // The inertia this fit gives (the model's own when it is held fixed).
     let inertia = d
         .free
@@ -506,13 +505,18 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         .position(|&i| i == 0)
         .and_then(|k| base.theta.get(k).copied())
         .unwrap_or(model.inertia.value);
+    // The tests below need the plain least-squares residual (orthogonal to the model's
+    // columns); the baseline the user reads is the model as fitted — the bias-compensated
+    // inertia — so that it is the score `compare`, `fit` and `--auto` print for it.
+    let own = residual::equation_error(model, p);
+    let own_j = model.inertia.value;
     let baseline = Baseline {
-        fit_percent: metrics::fit_percent(&p.input, &pred),
-        rms: (rss / e.len() as f64).sqrt(),
-        noise_floor_rms: p.equation_floor(inertia),
+        fit_percent: metrics::fit_percent(&own.measured, &own.predicted),
+        rms: (own.residual.iter().map(|r| r * r).sum::<f64>() / own.residual.len() as f64).sqrt(),
+        noise_floor_rms: p.equation_floor(own_j),
         input_noise_rms: p.noise_floor,
-        encoder_noise_rms: p.encoder_floor(inertia),
-        ljung_box_p: stats::ljung_box(e, 20).1,
+        encoder_noise_rms: p.encoder_floor(own_j),
+        ljung_box_p: stats::ljung_box(&own.residual, 20).1,
         model: model.name.clone(),
     };
 
