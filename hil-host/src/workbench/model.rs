@@ -598,11 +598,8 @@ mod tests {
         assert!(m.name.ends_with(" + offset"), "{}", m.name);
     }
 
-    /// A model file holds one load inertia: a positive compliance amplitude (no two-mass
-    /// plant) and a backlash whose J2 disagrees with compliance's split are refused, naming
-    /// the parameter, rather than saved as a different model.
-    #[test]
-    fn a_split_no_file_can_hold_is_refused() {
+    /// J = 0.03 with a 25 Hz, ζ = 0.05 compliance (amplitude 0 until a test sets it).
+    fn compliant() -> Model {
         let mut m = Model::baseline();
         m.inertia.value = 0.03;
         let shape = Shape {
@@ -611,6 +608,15 @@ mod tests {
             ..Shape::default()
         };
         m.add(EffectKind::Compliance, shape);
+        m
+    }
+
+    /// A model file holds one load inertia: a positive compliance amplitude (no two-mass
+    /// plant) and a backlash whose J2 disagrees with compliance's split are refused, naming
+    /// the parameter, rather than saved as a different model.
+    #[test]
+    fn a_split_no_file_can_hold_is_refused() {
+        let mut m = compliant();
         m.effects[1].params[0].value = 0.5;
         let e = m.physical().unwrap_err();
         assert!(e.contains("inertia_ratio") && e.contains("positive"), "{e}");
@@ -628,14 +634,7 @@ mod tests {
 
     #[test]
     fn compliance_maps_to_the_inertia_split_and_the_spring_of_its_mode() {
-        let mut m = Model::baseline();
-        m.inertia.value = 0.03;
-        let shape = Shape {
-            compliance_frequency: 25.0,
-            compliance_damping: 0.05,
-            ..Shape::default()
-        };
-        m.add(EffectKind::Compliance, shape);
+        let mut m = compliant();
         let e = m.effects.last_mut().unwrap();
         e.params[0].value = -0.5; // J2/J1 = 1/2
         let sim = m.to_sim();
