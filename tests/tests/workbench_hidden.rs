@@ -261,12 +261,14 @@ fn an_unresolved_mode_outranks_the_verdict_only_if_its_motion_form_agrees() {
     // verdict by fitting the recorded input's own noise (its command-form column carries it,
     // as the residual does); its motion form, which carries none of it, explains ≈ 0 %. On
     // these compliance trials (modes above the band, a spurious significant dead zone) the
-    // motion form explains as much as the command form and the mode keeps rank 1.
+    // motion form explains as much as the command form and the mode keeps rank 1. (Compliance
+    // 1 500 145 was the second such seed; its effect-free twin diverges, so it is no longer a
+    // trial — `hidden::generate` returns `None` for it.)
+    assert!(run(1_500_145, &[Family::Compliance], 2.0).is_none());
     for (family, seed, rho) in [
         (Family::Stribeck, 1_300_077, 2.0),
         (Family::Stribeck, 1_300_097, 2.0),
         (Family::Compliance, 1_500_052, 1.0),
-        (Family::Compliance, 1_500_145, 2.0),
     ] {
         let o = run(seed, &[family], rho).expect("a stable draw");
         println!(
