@@ -105,15 +105,6 @@ impl DataArgs {
         }
         Ok(Prepared::new(&rec, self.cutoff))
     }
-    /// The input's unit as the charts label it (the column's unit, times `--input-gain`).
-    fn input_unit(&self) -> String {
-        let u = data::unit_of(&self.input).0;
-        if self.input_gain == 1.0 {
-            u.to_string()
-        } else {
-            format!("{u}×{}", self.input_gain)
-        }
-    }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
         let mut m = match &self.model {
@@ -257,7 +248,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     }
     let m = metrics::compute(&res, a.period);
     let rec_units = if mode == Mode::Equation {
-        a.data.input_unit()
+        data::input_unit(&a.data.columns())
     } else {
         data::unit_of(&a.data.output).0.to_string()
     };
@@ -421,7 +412,11 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         let res = residual::equation_error(&model, &p);
         let m = metrics::compute(&res, None);
         let mut charts = vec![chart];
-        charts.extend(report::charts(&res, &m, &a.data.input_unit()));
+        charts.extend(report::charts(
+            &res,
+            &m,
+            &data::input_unit(&a.data.columns()),
+        ));
         report_path = Some(
             report::write(
                 dir,

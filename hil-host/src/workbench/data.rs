@@ -209,6 +209,17 @@ impl Recording {
     }
 }
 
+/// The input's unit as recordings and reports label it: the column's suffix unit, times
+/// `--input-gain` when there is one (`V×35.15…` for EMPS).
+pub fn input_unit(cols: &Columns) -> String {
+    let u = unit_of(&cols.input).0;
+    if cols.input_gain != 1.0 {
+        format!("{u}×{}", cols.input_gain)
+    } else {
+        u.to_string()
+    }
+}
+
 /// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
 /// time with the file, line and column in the message.
 pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
@@ -223,7 +234,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     }
     let (raw, lines) = read_numeric(path, &names)?;
     let (_, ts) = unit_of(&cols.time);
-    let (uu, us) = unit_of(&cols.input);
+    let (_, us) = unit_of(&cols.input);
     let (yu, ys) = unit_of(&cols.output);
     let scale = |k: usize, f: f64| -> Vec<f64> {
         raw.get(k)
@@ -284,11 +295,6 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
     }
     let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
-    let in_unit = if cols.input_gain != 1.0 {
-        format!("{uu}×{}", cols.input_gain)
-    } else {
-        uu.to_string()
-    };
     Ok(Recording {
         path: file,
         time,
@@ -296,7 +302,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         output,
         load_output: load_out,
         dt,
-        units: (in_unit, yu.to_string()),
+        units: (input_unit(cols), yu.to_string()),
         columns: cols.clone(),
     })
 }

@@ -512,7 +512,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let own_j = model.inertia.value;
     let baseline = Baseline {
         fit_percent: metrics::fit_percent(&own.measured, &own.predicted),
-        rms: (own.residual.iter().map(|r| r * r).sum::<f64>() / own.residual.len() as f64).sqrt(),
+        rms: own.rms(),
         noise_floor_rms: p.equation_floor(own_j),
         input_noise_rms: p.noise_floor,
         encoder_noise_rms: p.encoder_floor(own_j),

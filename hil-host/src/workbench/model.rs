@@ -170,8 +170,7 @@ impl Model {
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let file = path.display().to_string();
         let text = self.to_sim().to_toml_string();
-        self.physical_split()
-            .and_then(|()| check_physical(&text, &file))
+        self.check_written(&text, &file)
             .map_err(|e| ModelError::Unsupported {
                 file: file.clone(),
                 message: format!("not written, the fitted model is not physical: {e}"),
@@ -185,8 +184,17 @@ impl Model {
     /// its physical range); the reason if not. `--auto` only keeps models that pass, so what it
     /// finds can always be saved.
     pub fn physical(&self) -> Result<(), String> {
+        self.check_written(&self.to_sim().to_toml_string(), "fitted model")
+    }
+
+    /// [`Model::physical`] of this model's file text `text` (named `file` in the reason): the
+    /// split check, then the text parsed back as a simulator model — the one place the
+    /// parameters' physical ranges are checked.
+    fn check_written(&self, text: &str, file: &str) -> Result<(), String> {
         self.physical_split()?;
-        check_physical(&self.to_sim().to_toml_string(), "fitted model")
+        sim_plant::Model::from_toml_str(text, file)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
     }
 
     /// A compliance amplitude must be −J2/J1 < 0 for the file's two masses to exist: a
@@ -212,8 +220,7 @@ impl Model {
             ));
         }
         if let (Some(c), Some(b)) = (compliance, first(EffectKind::Backlash)) {
-            let ratio = -c.value;
-            let j2 = self.inertia.value * ratio / (1.0 + ratio);
+            let j2 = load_inertia_of_split(self.inertia.value, c.value);
             if (j2 - b.value).abs() > 1e-9 * self.inertia.value.abs() {
                 return Err(format!(
                     "backlash's load inertia {} = {:.4e} and compliance's split J2 = {j2:.4e} \
@@ -304,7 +311,14 @@ impl Model {
                     (EffectKind::Compliance, None) => {
                         let far = if j_far > 0.0 { j_far } else { 0.5 * j };
                         let free = by_name("stiffness").is_some_and(|q| q.free);
-                        (if far < j { -far / (j - far) } else { 0.0 }, free)
+                        (
+                            if far < j {
+                                split_of_load_inertia(j, far)
+                            } else {
+                                0.0
+                            },
+                            free,
+                        )
                     }
                     (_, None) => (0.0, true),
                 };
@@ -394,12 +408,14 @@ impl Model {
             match e.kind {
                 EffectKind::Backlash => j_far = Some((e.params[0].value, e.params[0].free)),
                 EffectKind::Compliance if j_far.is_none() => {
-                    // −J2/J1 = α  ⇒  J2 = J·|α|/(1 + |α|) (α > 0 is refused on saving,
-                    // see `physical_split`).
-                    let ratio = -e.params[0].value;
+                    // α > 0 is refused on saving (see `physical_split`).
+                    let alpha = e.params[0].value;
                     let t = &sim.plant.output_inertia;
-                    j_far = Some(if ratio > 0.0 && ratio.is_finite() {
-                        (self.inertia.value * ratio / (1.0 + ratio), e.params[0].free)
+                    j_far = Some(if alpha < 0.0 && alpha.is_finite() {
+                        (
+                            load_inertia_of_split(self.inertia.value, alpha),
+                            e.params[0].free,
+                        )
                     } else if t.value > 0.0 {
                         (t.value, t.free)
                     } else {
@@ -478,11 +494,16 @@ impl EffectEntry {
     }
 }
 
-/// Parses `text` back as a simulator model (the one place the physical ranges are checked).
-fn check_physical(text: &str, file: &str) -> Result<(), String> {
-    sim_plant::Model::from_toml_str(text, file)
-        .map(|_| ())
-        .map_err(|e| e.to_string())
+/// The load inertia J2 of a rigid inertia `j` split by compliance's amplitude α = −J2/J1:
+/// J2 = J·|α|/(1 + |α|) (α < 0).
+fn load_inertia_of_split(j: f64, alpha: f64) -> f64 {
+    let ratio = -alpha;
+    j * ratio / (1.0 + ratio)
+}
+
+/// The inverse of [`load_inertia_of_split`]: α = −J2/J1 with J1 = J − J2.
+fn split_of_load_inertia(j: f64, j2: f64) -> f64 {
+    -j2 / (j - j2)
 }
 
 #[cfg(test)]

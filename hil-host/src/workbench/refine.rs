@@ -135,9 +135,10 @@ const NOISE_SD_MARGIN: f64 = 3.0;
 /// broadband acceleration and velocity, whose passed noise hardly moves with any shape, and
 /// the plain RSS (at the compensated amplitudes) is kept.
 ///
-/// A compliance amplitude that comes out positive scores ∞: it is −J2/J1, and a shape at
-/// which the column only fits with the wrong sign is a broadband correction no two-mass
-/// joint makes (the model could not be saved, see `Model::physical`).
+/// A model with compliance whose split no model file can hold scores ∞
+/// ([`Model::physical_split`]): a positive amplitude −J2/J1 — at such a shape the column is a
+/// broadband correction no two-mass joint makes — or a backlash that disagrees with it on
+/// J2. Such a model could not be saved, and `--auto` would not keep it.
 fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
     let noise_aware = m.has(EffectKind::Compliance);
     residual::refit(m, p).map_or(f64::INFINITY, |f| {

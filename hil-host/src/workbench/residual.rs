@@ -813,6 +813,13 @@ pub struct Residual {
     pub noise_floor: Option<f64>,
 }
 
+impl Residual {
+    /// RMS of the residual.
+    pub fn rms(&self) -> f64 {
+        (self.residual.iter().map(|r| r * r).sum::<f64>() / self.residual.len() as f64).sqrt()
+    }
+}
+
 /// Equation-error residual of a model on prepared data.
 pub fn equation_error(model: &Model, p: &Prepared) -> Residual {
     let pred = predict(model, p);
