@@ -504,6 +504,45 @@ fn fit_text(r: &FitReport) -> String {
     s
 }
 
+/// The scores of a model file's own values, before `fit` refits them.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+struct AsGiven {
+    estimation: Score,
+    validation: Option<Score>,
+}
+
+impl AsGiven {
+    /// A line for the model as given, when its error differs from the refitted "before" by
+    /// more than 0.1 % of RMS (a model fitted on this very record matches it, and the line
+    /// would only repeat it).
+    fn text(&self, r: &FitReport) -> Option<String> {
+        let differs = |g: &Score, b: &Score| (g.rms - b.rms).abs() > 1e-3 * b.rms;
+        let val = self.validation.zip(r.before_validation);
+        if !differs(&self.estimation, &r.before) && !val.is_some_and(|(g, b)| differs(&g, &b)) {
+            return None;
+        }
+        let one = |name: &str, g: &Score| {
+            format!(
+                "{name} fit {:.3} %, RMS {:.4e} ({:.2}× the noise floor)",
+                g.fit_percent,
+                g.rms,
+                g.floor_ratio()
+            )
+        };
+        let mut s = format!(
+            "model as given (its file's values, not refitted): {}",
+            one("estimation", &self.estimation)
+        );
+        if let Some(v) = &self.validation {
+            s.push_str(&format!("; {}", one("validation", v)));
+        }
+        s.push_str(
+            "\n(\"before\" below is that model refitted on this record without the new effect)\n",
+        );
+        Some(s)
+    }
+}
+
 /// What to do next after a fit, from where its error sits against the noise floor. Kept out
 /// of [`fit_text`] because it needs to know the record (a load encoder or not) and the
 /// saved model's path.
@@ -560,14 +599,24 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         Some(f) => Some(a.data.prepared(f)?),
         None => None,
     };
+    // A model file's own values, scored before `fit` refits them: "before" is the model
+    // refitted on this record (the best it does without the new effect), which is not what
+    // `compare --model` printed for a model fitted on another record.
+    let as_given = a.data.model.as_ref().map(|_| AsGiven {
+        estimation: refine::score(&model, &p),
+        validation: val.as_ref().map(|v| refine::score(&model, v)),
+    });
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
     model.save(&a.save_model)?;
     if a.json {
         println!(
             "{}",
-            serde_json::json!({ "report": r, "model_file": a.save_model })
+            serde_json::json!({ "report": r, "as_given": as_given, "model_file": a.save_model })
         );
     } else {
+        if let Some(g) = as_given.as_ref().and_then(|g| g.text(&r)) {
+            print!("{g}");
+        }
         print!("{}", fit_text(&r));
         println!("model written to {}", a.save_model.display());
         if let Some(n) = fit_advice(&r, !p.load_position.is_empty(), &a.save_model) {
@@ -622,6 +671,32 @@ mod tests {
         assert!(!n.contains("--load-output"), "{n}");
         let t = fit_text(&b);
         assert!(t.contains("(2.00 → 1.80× the noise floor)"), "{t}");
+    }
+
+    /// A model file's own values get a line only when they score differently from the
+    /// refitted "before" (on either record).
+    #[test]
+    fn as_given_line_only_when_the_file_differs_from_its_refit() {
+        let r = report((2.0, 1.0), (3.0, 1.5));
+        let same = AsGiven {
+            estimation: score(2.0),
+            validation: Some(score(3.0)),
+        };
+        assert!(same.text(&r).is_none());
+        let other = AsGiven {
+            estimation: score(2.0),
+            validation: Some(score(4.0)),
+        };
+        let t = other.text(&r).expect("validation differs");
+        assert!(
+            t.contains("estimation fit 98.000 %") && t.contains("validation fit 96.000 %"),
+            "{t}"
+        );
+        let est_only = AsGiven {
+            estimation: score(2.5),
+            validation: None,
+        };
+        assert!(est_only.text(&r).is_some());
     }
 
     /// A refit that lowers the estimation error but raises the validation error says so;
