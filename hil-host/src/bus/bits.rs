@@ -50,8 +50,8 @@ pub fn crc15_bytes(bytes: &[u8]) -> u16 {
 /// Calls `out` with every bit from SOF through the end of the data field (dominant =
 /// `false`), i.e. the bits the CRC covers.
 ///
-/// Standard: SOF, ID[10:0], RTR, IDE=0, r0=0, DLC[3:0], data (19 + 8n bits).
-/// Extended: SOF, ID[28:18], SRR=1, IDE=1, ID[17:0], RTR, r1=0, r0=0, DLC, data
+/// Standard: SOF, ID\[10:0\], RTR, IDE=0, r0=0, DLC\[3:0\], data (19 + 8n bits).
+/// Extended: SOF, ID\[28:18\], SRR=1, IDE=1, ID\[17:0\], RTR, r1=0, r0=0, DLC, data
 /// (39 + 8n bits). A remote frame sends its DLC but no data.
 fn for_each_crc_covered_bit(frame: &ClassicFrame, mut out: impl FnMut(bool)) {
     let mut push = |v: u32, n: u32| {

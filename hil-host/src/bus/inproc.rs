@@ -1,6 +1,6 @@
 //! In-process CAN bus: a hub that broadcasts every frame to all attached nodes.
 //!
-//! Semantics (chosen to match SocketCAN's defaults, see [`CanBus`](super::CanBus)):
+//! Semantics (chosen to match SocketCAN's defaults, see [`CanBus`]):
 //!
 //! * **Broadcast, no self-echo.** Every other attached node receives each frame; the sender
 //!   does not (like `CAN_RAW_RECV_OWN_MSGS` off). [`InprocBus::set_recv_own`] turns the echo
@@ -153,7 +153,7 @@ impl InprocHub {
         }
     }
 
-    /// The process-wide hub called `name`, created on first use (what [`open_bus`]
+    /// The process-wide hub called `name`, created on first use (what [`super::open_bus`]
     /// (super::open_bus) uses for `"inproc"`).
     pub fn named(name: &str) -> Self {
         let reg = REGISTRY.get_or_init(|| Mutex::new(HashMap::new()));

@@ -403,7 +403,7 @@ pub struct SuperviseArgs {
     /// Desired output damping, N·m·s/rad.
     #[arg(long)]
     pub damping: Option<f64>,
-    /// Setpoint trajectory: step:TO[@T], ramp:TO:S, sine:AMP:HZ, chirp:AMP:F0:F1:S, csv:FILE.
+    /// Setpoint trajectory: step:TO or step:TO@T, ramp:TO:S, sine:AMP:HZ, chirp:AMP:F0:F1:S, csv:FILE.
     #[arg(long)]
     pub trajectory: Option<String>,
     /// Setpoint rate, Hz (20–400).

@@ -75,7 +75,7 @@ pub struct DataArgs {
     /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Differentiator cut-off [Hz] (default: a tenth of the sample rate).
+    /// Differentiator cut-off, Hz (default: a tenth of the sample rate).
     #[arg(long)]
     pub cutoff: Option<f64>,
 }

@@ -6,7 +6,7 @@
 //! actuator frame echoing k's sequence number, integrates 1 ms with that command held (zero
 //! order hold, ≥ 10 kHz internal substeps), and repeats; nothing depends on wall time, so a
 //! run is bit-reproducible. Real time: the same per tick, but paced by a 1 kHz wall clock,
-//! counting late and missing actuator frames (see [`super::realtime`]).
+//! counting late and missing actuator frames (see [`super::threaded`]).
 
 use controller::proto::{Actuator, Message, NodeId, OutputEncoder, Sensor};
 use sim_plant::{Plant, Sensors as PlantSensors, TrueState};

@@ -68,9 +68,9 @@ pub enum DataError {
         line: u64,
         /// Time column.
         column: String,
-        /// The odd interval [s].
+        /// The odd interval (s).
         step: f64,
-        /// The record's median interval [s].
+        /// The record's median interval (s).
         median: f64,
     },
     /// A column holds one value throughout: there is no excitation (or no motion) to fit.
@@ -182,7 +182,7 @@ impl Columns {
 pub struct Recording {
     /// Where it came from.
     pub path: PathBuf,
-    /// Time [s].
+    /// Time (s).
     pub time: Vec<f64>,
     /// Input (after `input_gain` and unit conversion).
     pub input: Vec<f64>,
@@ -190,7 +190,7 @@ pub struct Recording {
     pub output: Vec<f64>,
     /// Load-side position, if requested.
     pub load_output: Option<Vec<f64>>,
-    /// Mean sample period [s].
+    /// Mean sample period (s).
     pub dt: f64,
     /// Units (input, output).
     pub units: (String, String),

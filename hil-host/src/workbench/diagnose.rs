@@ -29,7 +29,7 @@
 //! 4. **Rank** by ERR (how much of the residual the effect explains); verdict = the best
 //!    significant candidate. A compliance mode the record does not resolve (never a verdict)
 //!    that would rank above the verdict is ranked by its *motion form's* ERR instead, net of
-//!    the encoder noise ([`motion_form_err`]): its command-form column carries the recorded
+//!    the encoder noise (`motion_form_err`): its command-form column carries the recorded
 //!    input's own noise and can outrank a real friction effect by fitting it. Occam: if a
 //!    significant candidate with fewer fingerprint columns leaves the same trace
 //!    (contributions correlated ≥ `ambiguity_corr`) and the top one explains less than
@@ -739,7 +739,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
 }
 
 /// RMS of a residual, in units of its noise floor, up to which it counts as "at the floor":
-/// for [`encoder_limited`], and for `fit`'s hint to look for another effect.
+/// for `encoder_limited`, and for `fit`'s hint to look for another effect.
 pub const AT_FLOOR: f64 = 1.2;
 
 /// A warning when a verdict rests on a residual that is at its noise floor and that floor is

@@ -71,7 +71,7 @@ pub struct Prepared {
     pub acceleration: Vec<f64>,
     /// Sample period.
     pub dt: f64,
-    /// Differentiator cut-off used [Hz].
+    /// Differentiator cut-off used (Hz).
     pub cutoff_hz: f64,
     /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
     pub input_instrument: Vec<f64>,
@@ -84,7 +84,7 @@ pub struct Prepared {
     /// breakaway level then mispredicted it. See [`static_friction`].
     pub stick_velocity: f64,
     /// Variance of the white noise on the recorded position (encoder quantisation and sensor
-    /// noise, see [`position_noise_variance`]). Through the differentiator it reaches every
+    /// noise, see `position_noise_variance`). Through the differentiator it reaches every
     /// regressor built linearly from the motion — the acceleration, the velocity, the
     /// compliance motion form's resonant filter of the acceleration — and least squares with
     /// noisy regressors is biased (errors-in-variables: at a 40 Hz cut-off a 16-bit encoder's
@@ -427,7 +427,7 @@ fn initial_state_columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
 #[derive(Debug, Clone)]
 pub struct Design {
     /// Free columns, then the record's initial-state columns (`cols.len() − free.len()` of
-    /// them; see [`initial_state_columns`]).
+    /// them; see `initial_state_columns`).
     pub cols: Vec<Vec<f64>>,
     /// Target.
     pub y: Vec<f64>,
@@ -762,7 +762,7 @@ pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
 }
 
 /// Equation-error prediction of the input. The effects' initial state on this record (see
-/// [`initial_state_columns`]) is fitted to what the parameters leave, as a simulation's
+/// `initial_state_columns`) is fitted to what the parameters leave, as a simulation's
 /// initial state is estimated on the record it is compared with.
 pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
     let cols = columns(model, p);

@@ -211,7 +211,7 @@ fn deflection_column(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
 /// encoder count), so its extent is the gap; the percentiles keep single noise samples and
 /// the filter's overshoot at impacts out of it. A fit with a load position reports it as the
 /// width (the column itself is built from the measured deflection, see
-/// [`measured_column`]).
+/// `measured_deflection`).
 pub fn measured_width(traj: &Trajectory) -> Option<f64> {
     let n = traj.len();
     let load = traj.load()?;

@@ -144,7 +144,7 @@ pub struct Plant {
     dry: bool,
     env: Environment,
     rate: f64,
-    /// Positions: motor node, middle node, output node (output-referred; rigid uses [0]).
+    /// Positions: motor node, middle node, output node (output-referred; rigid uses index 0).
     x: [f64; 3],
     v: [f64; 3],
     stuck: bool,

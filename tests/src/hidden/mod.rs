@@ -8,7 +8,7 @@
 //!   command, input sensor noise and encoder quantisation (2¹⁶ counts/rev), and the hidden
 //!   effect's shape parameters over a decade. For a hidden D/A quantiser the input noise is a
 //!   torque disturbance after the converter and the recorded command is exact (see
-//!   [`NoiseAt`]).
+//!   `NoiseAt`).
 //! * **Strength** ρ = excess RMS of the best baseline fit over the noise:
 //!   `ρ = √(RMS_b² − RMS_0²)/RMS_0`, where `RMS_b` is the baseline's equation-error RMS on the
 //!   trial and `RMS_0` on its *twin* — the same excitation, noise and seeds with the effect
@@ -121,7 +121,7 @@ struct Excitation {
     feedforward: bool,
 }
 
-/// Differentiator cut-off for the trials [Hz] (`HIDDEN_CUTOFF` overrides, for experiments).
+/// Differentiator cut-off for the trials, Hz (`HIDDEN_CUTOFF` overrides, for experiments).
 pub fn cutoff() -> Option<f64> {
     std::env::var("HIDDEN_CUTOFF")
         .ok()

@@ -45,7 +45,7 @@ pub struct Plant {
     pub gravity: f64,
     /// Gravity phase.
     pub gravity_phase: f64,
-    /// Input delay [s].
+    /// Input delay (s).
     pub delay: f64,
     /// D/A quantum (0 = none).
     pub quantum: f64,
@@ -166,7 +166,7 @@ pub trait Controller {
 /// Simulated measurements.
 #[derive(Debug, Clone)]
 pub struct Measured {
-    /// Time [s].
+    /// Time (s).
     pub time: Vec<f64>,
     /// Commanded torque as logged (what the workbench sees as input).
     pub command: Vec<f64>,

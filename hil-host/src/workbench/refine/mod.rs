@@ -1,0 +1,479 @@
+//! `fit --add` and `diagnose --auto`: add an effect, refit everything free, and show the error
+//! before and after — on the estimation record and, if given, on a validation record.
+//!
+//! Amplitudes enter linearly, so they are fitted by linear least squares. A smooth shape
+//! parameter (Stribeck velocity, ripple period, dead-zone width) is first placed at the best
+//! point of the library's `shape_grid`, then refined together with all free amplitudes by
+//! Levenberg–Marquardt on the equation error (log-parameterised so it stays positive); its 1σ
+//! comes from the LM Jacobian with the same batch-means covariance. Shapes whose fingerprint
+//! is not smooth in the shape (backlash width, quantum) are not refined by LM. Before LM,
+//! searches least squares cannot do (see `search_shapes`): a delay's τ on the input actually
+//! delayed, Coulomb's sign lead and smoothing, the ripple period on a fine grid, the
+//! compliance mode (and the motion form of its column), the quantiser step and the blur of
+//! its sawtooth, the backlash width and the load's time constant, Stribeck's stick window (at
+//! rest the friction is the applied torque).
+//!
+//! `--auto` adds the diagnosis's verdict, or a simpler significant candidate that fits as well
+//! (BIC); when nothing significant is left it probes for a delay on the measured input, then
+//! tries removals and replacements of what it added (BIC), because greedy addition can take
+//! one flexible effect for two true ones.
+//!
+//! The module's parts: this file holds the scores, the refit (least squares, then the shape
+//! searches, then LM) and `fit --add`; `search` the shape searches least squares cannot do;
+//! [`auto()`] the `--auto` loop (choice by BIC, the delay probe, the swap pass).
+
+mod auto;
+mod search;
+
+pub use auto::{auto, AutoRun, AutoStep};
+pub use search::best_shape;
+
+use serde::Serialize;
+use sim_plant::effects::{EffectKind, Shape};
+
+use super::fit;
+use super::metrics;
+use super::model::Model;
+use super::residual::{self, Prepared};
+use search::{search_shapes, StickStart};
+
+/// Fit % and RMS of a model on one record.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Score {
+    /// Fit %.
+    pub fit_percent: f64,
+    /// RMS residual.
+    pub rms: f64,
+    /// ‖e‖/‖u‖ %.
+    pub relative_error_percent: f64,
+    /// The equation error's noise floor on this record at this model's inertia
+    /// ([`Prepared::equation_floor`]): an RMS near it leaves nothing for another effect to
+    /// explain.
+    pub noise_floor_rms: f64,
+}
+
+impl Score {
+    /// RMS over the noise floor (1 = nothing left but noise).
+    pub fn floor_ratio(&self) -> f64 {
+        self.rms / self.noise_floor_rms
+    }
+}
+
+/// Equation-error score of a model on prepared data (no refit).
+pub fn score(model: &Model, p: &Prepared) -> Score {
+    let r = residual::equation_error(model, p);
+    let n = r.residual.len() as f64;
+    let ss: f64 = r.residual.iter().map(|v| v * v).sum();
+    let uu: f64 = r.measured.iter().map(|v| v * v).sum();
+    Score {
+        fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
+        rms: (ss / n).sqrt(),
+        relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
+        noise_floor_rms: p.equation_floor(model.inertia.value),
+    }
+}
+
+/// One fitted parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamRow {
+    /// Owner (`inertia` or an effect name).
+    pub owner: String,
+    /// Name.
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// 1σ.
+    pub sigma: f64,
+}
+
+/// What `fit --add` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct FitReport {
+    /// Effect added (None = refit only).
+    pub added: Option<String>,
+    /// Before, estimation data.
+    pub before: Score,
+    /// After, estimation data.
+    pub after: Score,
+    /// Before, validation data.
+    pub before_validation: Option<Score>,
+    /// After, validation data.
+    pub after_validation: Option<Score>,
+    /// Parameters ± 1σ.
+    pub params: Vec<ParamRow>,
+}
+
+/// Shape value that LM may refine, if the effect's fingerprint is smooth in it.
+fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
+    match kind {
+        EffectKind::Stribeck => Some(s.stribeck_velocity),
+        EffectKind::Ripple => Some(s.ripple_period),
+        EffectKind::Deadband => Some(s.deadband_width),
+        _ => None,
+    }
+}
+
+fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
+    match kind {
+        EffectKind::Stribeck => s.stribeck_velocity = v,
+        EffectKind::Ripple => s.ripple_period = v,
+        EffectKind::Deadband => s.deadband_width = v,
+        _ => {}
+    }
+}
+
+/// Refit all free parameters of a model: least squares for the amplitudes, the searches of
+/// the shape searches (`search::search_shapes`), then Levenberg–Marquardt over the smooth shapes of free effects.
+///
+/// The LM is a *variable projection*: its unknowns are the shapes alone (log-parameterised),
+/// and at each trial shape the amplitudes are the bias-compensated least-squares solution
+/// ([`residual::refit`]). A joint LM over amplitudes and shapes minimises the plain sum of
+/// squares, i.e. it is ordinary least squares in the amplitudes, and gives back the
+/// errors-in-variables shrinkage of the inertia that the compensation takes out (the
+/// acceleration column carries the encoder's noise): on the hidden-effect trials the Stribeck
+/// refit's inertia came out 2–3 % low, enough to miss the validation floor by 1.2–1.5×, while
+/// the compensated solution at the very same shapes had it within 0.1 %. The objective is the
+/// one the shape searches minimise (`search::ls_rss`), so LM polishes their result instead of
+/// pulling it elsewhere. The amplitudes' 1σ are the least-squares ones at the final shape.
+///
+/// A model with a free Stribeck term is refitted from **several starts** (`StickStart::all`)
+/// and keeps the one with the lowest equation error on the estimation record (its [`score`],
+/// the stuck rows' clipped balancing torque included): everything searched; the dry-friction
+/// sign lead held at 0; and the lead at 0 with the Stribeck exponent δ held at each value of
+/// the grid. The stick window, the sign shape and vs × δ are searched one after the other on a
+/// multimodal surface, and where the search ends depends on where the first steps took it. A
+/// zero lead is the physical prior — the differentiator is zero-phase, so the friction
+/// reverses where the measured velocity crosses zero — and the searched lead the data's
+/// alternative; holding δ lets the window and vs settle under each curve shape instead of
+/// the one the diagnosis's grid happened to prefer. On the 119 hidden-Stribeck trials at
+/// ρ ≥ 1 of the 200-per-family bench, validation within 1.1× the floor: one start 93, the
+/// first two 97, all four 103 (`stribeck_probe` with `WB_ONLY=1`; docs/workbench.md).
+pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
+    let stribeck = model
+        .effects
+        .iter()
+        .any(|e| e.kind == EffectKind::Stribeck && e.params.iter().any(|q| q.free));
+    if !stribeck {
+        return refit_from(model, p, StickStart::SEARCHED);
+    }
+    let fits = refit_each_start(model, p);
+    let mut best: Option<(f64, Model)> = None;
+    let mut first_err = None;
+    for (m, r) in fits {
+        match r {
+            Ok(()) => {
+                let rms = score(&m, p).rms;
+                let rms = if rms.is_nan() { f64::INFINITY } else { rms };
+                if best.as_ref().is_none_or(|(b, _)| rms < *b) {
+                    best = Some((rms, m));
+                }
+            }
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    match best {
+        Some((_, m)) => {
+            *model = m;
+            Ok(())
+        }
+        // Every start failed (`StickStart::all` is never empty): the first start's error.
+        None => first_err.map_or(Ok(()), Err),
+    }
+}
+
+/// The Stribeck refit from each of [`StickStart::all`], in start order (one thread each: the
+/// order, not which finishes first, decides ties in [`refit_all`]).
+#[doc(hidden)]
+pub fn refit_each_start(model: &Model, p: &Prepared) -> Vec<(Model, Result<(), fit::FitError>)> {
+    std::thread::scope(|sc| {
+        let hs: Vec<_> = StickStart::all(p)
+            .into_iter()
+            .map(|start| {
+                let mut m = model.clone();
+                sc.spawn(move || {
+                    let r = refit_from(&mut m, p, start);
+                    (m, r)
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
+}
+
+/// [`refit_all`] from one start of the Stribeck searches.
+fn refit_from(model: &mut Model, p: &Prepared, start: StickStart) -> Result<(), fit::FitError> {
+    residual::refit(model, p)?;
+    search_shapes(model, p, start);
+    let before = residual::refit(model, p)?.rss;
+    let lm_idx: Vec<usize> = model
+        .effects
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| {
+            smooth_shape(e.kind, &e.shape).is_some() && e.params.iter().any(|q| q.free)
+        })
+        .map(|(i, _)| i)
+        .collect();
+    if lm_idx.is_empty() {
+        return Ok(());
+    }
+    let x0: Vec<f64> = lm_idx
+        .iter()
+        .map(|&e| {
+            smooth_shape(model.effects[e].kind, &model.effects[e].shape)
+                .unwrap_or(1.0)
+                .ln()
+        })
+        .collect();
+    let template = model.clone();
+    let apply = |x: &[f64]| -> Model {
+        let mut m = template.clone();
+        for (k, &e) in lm_idx.iter().enumerate() {
+            let kind = m.effects[e].kind;
+            set_shape(kind, &mut m.effects[e].shape, x[k].exp());
+        }
+        m
+    };
+    let lm = fit::levenberg_marquardt(
+        |x| {
+            let mut m = apply(x);
+            residual::refit(&mut m, p)
+                .map(|f| f.residual)
+                .unwrap_or_else(|_| vec![f64::INFINITY; p.len()])
+        },
+        &x0,
+        30,
+    );
+    let mut m = apply(&lm.x);
+    if let Ok(f) = residual::refit(&mut m, p) {
+        if f.rss < before && m.physical_split().is_ok() {
+            *model = m;
+        }
+    }
+    Ok(())
+}
+
+/// Parameter table of a model.
+pub fn param_rows(model: &Model) -> Vec<ParamRow> {
+    let mut rows = vec![ParamRow {
+        owner: "inertia".into(),
+        name: model.inertia.name.clone(),
+        value: model.inertia.value,
+        sigma: model.inertia.sigma.unwrap_or(0.0),
+    }];
+    for e in &model.effects {
+        for q in &e.params {
+            rows.push(ParamRow {
+                owner: e.kind.name().into(),
+                name: q.name.clone(),
+                value: q.value,
+                sigma: q.sigma.unwrap_or(0.0),
+            });
+        }
+        if let Some(v) = smooth_shape(e.kind, &e.shape) {
+            rows.push(ParamRow {
+                owner: e.kind.name().into(),
+                name: "shape".into(),
+                value: v,
+                sigma: 0.0,
+            });
+        }
+    }
+    rows
+}
+
+/// Add `kind` (if given) at its best grid shape, refit everything free, and score before and
+/// after on estimation and validation data.
+pub fn fit_add(
+    model: &mut Model,
+    p: &Prepared,
+    kind: Option<EffectKind>,
+    validation: Option<&Prepared>,
+) -> Result<FitReport, fit::FitError> {
+    residual::refit(model, p)?;
+    let before = score(model, p);
+    let before_validation = validation.map(|v| score(model, v));
+    if let Some(k) = kind {
+        let shape = best_shape(model, p, k).unwrap_or_default();
+        model.add(k, shape);
+    }
+    refit_all(model, p)?;
+    Ok(FitReport {
+        added: kind.map(|k| k.name().to_string()),
+        before,
+        after: score(model, p),
+        before_validation,
+        after_validation: validation.map(|v| score(model, v)),
+        params: param_rows(model),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::auto::{bic, choose};
+    use super::*;
+    use crate::workbench::data::{Columns, Recording};
+    use crate::workbench::diagnose::{self, Diagnosis};
+    use crate::workbench::stats::tests_support::unit_uniform;
+
+    /// A rigid joint (inertia [`J`], viscous 0.03 N·m·s/rad) on two sines, plus `extra`
+    /// (position, velocity) → torque, with white torque noise of 3 mN·m rms, recorded through
+    /// an encoder of `counts` per revolution (with 0.2 count of jitter).
+    fn synthetic(extra: impl Fn(f64, f64) -> f64, counts: f64) -> Prepared {
+        let (n, dt) = (20_000, 1e-3);
+        let (j, b) = (J, 0.03);
+        let step = std::f64::consts::TAU / counts;
+        let w1 = std::f64::consts::TAU * 0.4;
+        let w2 = std::f64::consts::TAU * 1.1;
+        let mut time = Vec::with_capacity(n);
+        let mut input = Vec::with_capacity(n);
+        let mut output = Vec::with_capacity(n);
+        for i in 0..n {
+            let t = i as f64 * dt;
+            let x = 0.08 * (w1 * t).sin() + 0.03 * (w2 * t + 1.0).sin();
+            let v = 0.08 * w1 * (w1 * t).cos() + 0.03 * w2 * (w2 * t + 1.0).cos();
+            let a = -0.08 * w1 * w1 * (w1 * t).sin() - 0.03 * w2 * w2 * (w2 * t + 1.0).sin();
+            let tau = j * a + b * v + extra(x, v);
+            let noise = (unit_uniform(2 * i as u64) - 0.5) * 12f64.sqrt() * 3e-3;
+            let jitter = (unit_uniform(2 * i as u64 + 1) - 0.5) * 12f64.sqrt() * 0.2 * step;
+            time.push(t);
+            input.push(tau + noise);
+            output.push(step * ((x + jitter) / step).round());
+        }
+        let rec = Recording {
+            path: "synthetic".into(),
+            time,
+            input,
+            output,
+            load_output: None,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: Columns::new("torque_Nm", "q_rad"),
+        };
+        Prepared::new(&rec, Some(40.0))
+    }
+
+    const J: f64 = 0.02;
+    const FINE: f64 = 1_048_576.0;
+
+    /// A rigid joint with a position ripple, recorded through a 2¹⁶-count encoder: the
+    /// differentiated acceleration carries enough encoder noise that ordinary least squares
+    /// shrinks the inertia by more than 1 %. The refit with LM over the ripple period must keep
+    /// the bias-compensated inertia (LM as variable projection), and find the period.
+    #[test]
+    fn lm_shape_refit_keeps_the_compensated_inertia() {
+        let (j, amp, period) = (J, 0.01, 0.05);
+        let p = synthetic(
+            |x, _| amp * (std::f64::consts::TAU * x / period).sin(),
+            65_536.0,
+        );
+        // The test is only meaningful where plain least squares would be visibly biased.
+        let a2 = p.acceleration.iter().map(|a| a * a).sum::<f64>() / p.len() as f64;
+        let acc_noise =
+            p.position_noise_var * super::super::diff::acceleration_noise_gain(40.0, p.dt).powi(2);
+        assert!(acc_noise / a2 > 0.02, "{}", acc_noise / a2);
+        let mut m = Model::baseline();
+        m.add(
+            EffectKind::Ripple,
+            Shape {
+                ripple_period: 0.051,
+                ..Shape::default()
+            },
+        );
+        refit_all(&mut m, &p).expect("fit");
+        let period_fit = m.effects[1].shape.ripple_period;
+        assert!(
+            (period_fit / period - 1.0).abs() < 1e-2,
+            "period {period_fit}"
+        );
+        assert!(
+            (m.inertia.value / j - 1.0).abs() < 5e-3,
+            "inertia {} vs {j}",
+            m.inertia.value
+        );
+    }
+
+    /// The diagnosis of `p` against the baseline, with `effect` forced to be the verdict (as
+    /// if its grid-shape test had come out significant).
+    fn forced_verdict(p: &Prepared, effect: &str) -> Diagnosis {
+        let mut d = diagnose::diagnose(&Model::baseline(), p, &diagnose::Options::default());
+        for c in &mut d.candidates {
+            if c.effect == effect {
+                c.significant = true;
+            }
+        }
+        d.verdict.add = Some(effect.to_string());
+        d
+    }
+
+    /// `--auto` adds a candidate only if its refitted model lowers the BIC: on a joint with
+    /// nothing but inertia and viscous friction, an offset column handed in as the verdict
+    /// buys a χ²(1)-sized drop in RSS and does not pay for its parameter; with a real offset
+    /// in the data the same call takes it. On the rigid record compliance explains over a
+    /// third of the residual at a mode above the record's band (its command-form column fits
+    /// the input's own noise, and refitted it lowers the BIC) — it must not compete as a
+    /// "close" alternative, being unresolved. A 2²⁰-count encoder keeps the baseline at the
+    /// input's noise floor.
+    #[test]
+    fn choose_takes_a_candidate_only_if_its_refit_lowers_bic() {
+        let baseline = Model::baseline();
+        let mut m0 = baseline.clone();
+        let rigid = synthetic(|_, _| 0.0, FINE);
+        refit_all(&mut m0, &rigid).expect("fit");
+        let d = forced_verdict(&rigid, "offset");
+        let picked = choose(&m0, &rigid, &d, "offset").expect("choose");
+        assert!(
+            picked.is_none(),
+            "took {:?} on a joint without an offset",
+            picked.map(|(c, _)| c.effect)
+        );
+
+        let mut m1 = baseline;
+        let offset = synthetic(|_, _| 0.01, FINE);
+        refit_all(&mut m1, &offset).expect("fit");
+        let d = forced_verdict(&offset, "offset");
+        let (c, fitted) = choose(&m1, &offset, &d, "offset")
+            .expect("choose")
+            .expect("the offset in the data was not taken");
+        assert_eq!(c.effect, "offset");
+        assert!(bic(&fitted, &offset) < bic(&m1, &offset));
+    }
+
+    /// On a rigid joint whose residual is mostly the encoder's quantisation through the
+    /// differentiator, the diagnosis's floor must hold that noise (so the baseline reads as
+    /// being at its floor, not 6× above it), and a verdict drawn there must carry the warning
+    /// that it may be fitting the quantisation. With a fine encoder the input's noise is the
+    /// floor and no warning is given.
+    #[test]
+    fn diagnosis_floor_holds_the_encoder_noise_through_the_inertia() {
+        let coarse = synthetic(|_, _| 0.0, 65_536.0);
+        let mut m = Model::baseline();
+        refit_all(&mut m, &coarse).expect("fit");
+        let d = diagnose::diagnose(&m, &coarse, &diagnose::Options::default());
+        let b = &d.baseline;
+        assert!(b.encoder_noise_rms > 3.0 * b.input_noise_rms, "{b:?}");
+        let ratio = b.rms / b.noise_floor_rms;
+        assert!((0.8..1.2).contains(&ratio), "RMS / floor {ratio}: {b:?}");
+        if let Some(add) = &d.verdict.add {
+            assert!(
+                d.notes
+                    .iter()
+                    .any(|n| n.starts_with(add.as_str()) && n.contains("quantisation")),
+                "verdict {add} without the encoder warning: {:?}",
+                d.notes
+            );
+        }
+
+        let fine = synthetic(|_, _| 0.0, FINE);
+        let mut m = Model::baseline();
+        refit_all(&mut m, &fine).expect("fit");
+        let d = diagnose::diagnose(&m, &fine, &diagnose::Options::default());
+        let b = &d.baseline;
+        assert!(b.encoder_noise_rms < 0.5 * b.input_noise_rms, "{b:?}");
+        assert!(!d.notes.iter().any(|n| n.contains("quantisation")));
+    }
+}

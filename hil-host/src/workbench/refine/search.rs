@@ -1,0 +1,713 @@
+//! The shape searches of a refit: what least squares cannot place (a delay's τ on the
+//! delayed input, Coulomb's sign lead, the ripple period, the compliance mode, the quantiser
+//! step, the backlash width and the load's time constant, Stribeck's stick window), each a
+//! line, grid or golden-section search on [`ls_rss`].
+
+use sim_plant::effects::{backlash, EffectKind, Shape};
+
+use super::super::diagnose;
+use super::super::fit::{self, gram, gram_inverse};
+use super::super::model::Model;
+use super::super::residual::{self, Prepared};
+
+/// Standard deviations of the passed noise's energy charged to a shape (see [`ls_rss`]): about
+/// the most favourable deviation a search over a few hundred shapes finds by chance
+/// (Φ⁻¹(1/500) ≈ −2.9).
+const NOISE_SD_MARGIN: f64 = 3.0;
+
+/// Criterion of the least-squares refit of `m` (∞ if it fails); `m` keeps the fitted
+/// amplitudes. The RSS less the part that is the regressors' own (encoder) noise passed
+/// through the fitted model (`LsFit::noise_rss`): the plain RSS rewards shapes that pass
+/// less noise — a damped, shifted compliance mode that does not amplify the acceleration's
+/// noise at its anti-resonance beat the true one (hidden-compliance trials: estimation RMS
+/// 0.41 vs 0.86× the floor, validation 1.26 vs 0.90×) — rather than shapes that fit the
+/// motion. That subtraction is the noise energy's *mean*; a narrow resonance passes few
+/// degrees of freedom, so on one record its noise energy scatters widely, and a search over
+/// modes picks the one whose noise happened to fall short (a trial's search went to ζ = 0.009
+/// where the record's encoder noise density was 0.6× its mean: 3.8 passed against 6.8
+/// subtracted, validation 4.3× the floor). So the subtraction's uncertainty is charged at
+/// [`NOISE_SD_MARGIN`] standard deviations (`LsFit::noise_rss_sd`): negligible for broadband
+/// columns, decisive against the narrowest modes.
+///
+/// Only for models with a compliance term: elsewhere the motion-linear columns are the
+/// broadband acceleration and velocity, whose passed noise hardly moves with any shape, and
+/// the plain RSS (at the compensated amplitudes) is kept.
+///
+/// A model with compliance whose split no model file can hold scores ∞
+/// ([`Model::physical_split`]): a positive amplitude −J2/J1 — at such a shape the column is a
+/// broadband correction no two-mass joint makes — or a backlash that disagrees with it on
+/// J2. Such a model could not be saved, and `--auto` would not keep it.
+fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
+    let noise_aware = m.has(EffectKind::Compliance);
+    residual::refit(m, p).map_or(f64::INFINITY, |f| {
+        if noise_aware && m.physical_split().is_err() {
+            f64::INFINITY
+        } else if noise_aware {
+            f.rss - f.noise_rss + NOISE_SD_MARGIN * f.noise_rss_sd
+        } else {
+            f.rss
+        }
+    })
+}
+
+/// Try each shape `set(shape, x)` for `x` in `xs` on effect `e`, keep the best by LS RSS.
+/// Returns the best x and its RSS.
+fn line_search(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    xs: &[f64],
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let mut best = (f64::NAN, f64::INFINITY);
+    let mut best_model = model.clone();
+    for &x in xs {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        let r = ls_rss(&mut m, p);
+        if r < best.1 {
+            best = (x, r);
+            best_model = m;
+        }
+    }
+    *model = best_model;
+    best
+}
+
+/// Joint grid search of two shape values of effect `e`: for each `outer` value (set by
+/// `set_outer`) a [`line_search`] over `inner`; `model` becomes the best pair's fit, its RSS
+/// is returned (unchanged model and ∞ for an empty grid). Used where two shape values trade
+/// off against each other (Coulomb smoothing × sign lead, mode damping × frequency).
+fn grid_search(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    outer: &[f64],
+    set_outer: &dyn Fn(&mut Model, usize, f64),
+    inner: &[f64],
+    set_inner: &dyn Fn(&mut Model, usize, f64),
+) -> f64 {
+    let mut best: Option<(f64, Model)> = None;
+    for &x in outer {
+        let mut m = model.clone();
+        set_outer(&mut m, e, x);
+        let (_, r) = line_search(&mut m, p, e, inner, set_inner);
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, m));
+        }
+    }
+    match best {
+        Some((r, m)) => {
+            *model = m;
+            r
+        }
+        None => f64::INFINITY,
+    }
+}
+
+/// Golden-section minimum of the LS RSS over `x` ∈ [lo, hi] (unimodal near a grid minimum);
+/// keeps `keep` (the grid point) if that is still better.
+fn golden(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    (mut lo, mut hi): (f64, f64),
+    keep: f64,
+    iters: usize,
+    set: &dyn Fn(&mut Model, usize, f64),
+) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let eval = |x: f64| {
+        let mut m = model.clone();
+        set(&mut m, e, x);
+        ls_rss(&mut m, p)
+    };
+    let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fa, mut fb) = (eval(a), eval(b));
+    for _ in 0..iters {
+        if fa < fb {
+            hi = b;
+            (b, fb) = (a, fa);
+            a = hi - g * (hi - lo);
+            fa = eval(a);
+        } else {
+            lo = a;
+            (a, fa) = (b, fb);
+            b = lo + g * (hi - lo);
+            fb = eval(b);
+        }
+    }
+    let x = if fa < fb { a } else { b };
+    // Never worse than the grid point the bracket was built around.
+    line_search(model, p, e, &[x, keep], set)
+}
+
+/// The `count` highest local maxima of the position periodogram |Σ r·e^{i2πq/P}|² of the
+/// residual `r` of `model` without effect `e`, over periods P ∈ [lo, hi] spaced by 1 %.
+fn periodogram_peaks(
+    model: &Model,
+    p: &Prepared,
+    e: usize,
+    lo: f64,
+    hi: f64,
+    count: usize,
+) -> Vec<f64> {
+    let mut m = model.clone();
+    m.effects.remove(e);
+    let Ok(fit) = residual::refit(&mut m, p) else {
+        return Vec::new();
+    };
+    let r = &fit.residual;
+    if !(lo > 0.0 && hi > lo) {
+        return Vec::new();
+    }
+    let steps = ((hi / lo).ln() / 1.01f64.ln()).ceil() as usize;
+    let periods: Vec<f64> = (0..=steps).map(|k| lo * 1.01f64.powi(k as i32)).collect();
+    let power = |period: f64| -> f64 {
+        let k = std::f64::consts::TAU / period;
+        let (mut a, mut b) = (0.0, 0.0);
+        for (x, q) in r.iter().zip(&p.position) {
+            let (sn, cs) = (k * q).sin_cos();
+            a += x * sn;
+            b += x * cs;
+        }
+        a * a + b * b
+    };
+    let half = periods.len() / 2;
+    let pw: Vec<f64> = std::thread::scope(|sc| {
+        let h = sc.spawn(|| {
+            periods[half..]
+                .iter()
+                .map(|&x| power(x))
+                .collect::<Vec<_>>()
+        });
+        let mut v: Vec<f64> = periods[..half].iter().map(|&x| power(x)).collect();
+        v.extend(h.join().expect("periodogram worker"));
+        v
+    });
+    let mut peaks: Vec<(f64, f64)> = (1..pw.len().saturating_sub(1))
+        .filter(|&i| pw[i] >= pw[i - 1] && pw[i] >= pw[i + 1])
+        .map(|i| (pw[i], periods[i]))
+        .collect();
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    peaks.into_iter().take(count).map(|(_, x)| x).collect()
+}
+
+fn set_delay(m: &mut Model, e: usize, tau: f64) {
+    let tau = tau.max(0.0);
+    m.effects[e].shape.delay = tau;
+    if let Some(q) = m.effects[e].params.first_mut() {
+        q.value = tau;
+    }
+}
+
+/// Shape searches the least-squares refit cannot do, before Levenberg–Marquardt:
+///
+/// * **Delay**: τ by a 1-D search on the residual re-formed with the measured input actually
+///   delayed by τ (grid over 0–30 samples, then golden section; fractional delays by linear
+///   interpolation), the rest by least squares at each τ. Not the linear column
+///   (u − u(t − τs))/τs with a free amplitude: that column carries the input's own noise.
+/// * **Coulomb**: the sign's time lead (`Shape::sign_lead`) and smoothing ε, by coordinate
+///   search: dynamic friction reverses over a pre-sliding displacement, not exactly at v = 0.
+/// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step) and around
+///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
+///   the RSS oscillates in the period and LM only finds the nearest minimum.
+///
+/// * **Compliance**: the mode (f, ζ) by a joint grid and golden sections, in the command form
+///   and in the motion form of the column (see `search_compliance`).
+/// * **Quantization**: the step Δ by a dense scan, and the blur σ of the sawtooth (see
+///   `search_quantum`).
+/// * **Backlash**: the gap width and the load's time constant by a joint grid and golden
+///   sections (see `search_backlash`).
+/// * **Stribeck**: the refit's form of its column — stick hold, bristle transient — with the
+///   stick window, the dry-friction sign shape shared with Coulomb, and vs × δ (see
+///   `search_stick`).
+///
+/// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
+pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart) {
+    search_each(model, p, start);
+    // Direction-dependent friction switches with the Coulomb friction: an asymmetry next to a
+    // Coulomb term takes its sign shape (an independent one would buy reversal-shape freedom
+    // with the second sign column and stand in for an offset).
+    let sign = model
+        .effects
+        .iter()
+        .find(|e| e.kind == EffectKind::Coulomb)
+        .map(|e| (e.shape.sign_epsilon, e.shape.sign_lead));
+    if let Some((eps, lead)) = sign {
+        for e in model
+            .effects
+            .iter_mut()
+            .filter(|e| e.kind == EffectKind::Asymmetry)
+        {
+            e.shape.sign_epsilon = eps;
+            e.shape.sign_lead = lead;
+        }
+    }
+}
+
+fn search_each(model: &mut Model, p: &Prepared, start: StickStart) {
+    let dt = p.dt;
+    for e in 0..model.effects.len() {
+        let entry = &model.effects[e];
+        if !entry.params.iter().any(|q| q.free) {
+            continue;
+        }
+        match entry.kind {
+            EffectKind::Delay => {
+                let grid: Vec<f64> = (0..=30).map(|k| k as f64 * dt).collect();
+                let (t0, _) = line_search(model, p, e, &grid, &set_delay);
+                let (t1, r1) = golden(
+                    model,
+                    p,
+                    e,
+                    ((t0 - dt).max(0.0), t0 + dt),
+                    t0,
+                    14,
+                    &set_delay,
+                );
+                // 1σ from the curvature of RSS(τ): var = 2·s²/RSS''.
+                let h = 0.25 * dt;
+                let at = |tau: f64| {
+                    let mut m = model.clone();
+                    set_delay(&mut m, e, tau);
+                    ls_rss(&mut m, p)
+                };
+                let curv = (at(t1 + h) - 2.0 * r1 + at((t1 - h).max(0.0))) / (h * h);
+                let s2 = r1 / (p.len() as f64 - model.params().len() as f64).max(1.0);
+                if let Some(q) = model.effects[e].params.first_mut() {
+                    q.sigma = Some(if curv > 0.0 {
+                        (2.0 * s2 / curv).sqrt()
+                    } else {
+                        f64::NAN
+                    });
+                }
+            }
+            EffectKind::Coulomb => {
+                let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
+                let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
+                search_sign(model, p, e, &set_eps, &set_lead, true);
+            }
+            EffectKind::Ripple => {
+                let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
+                let step = if grid.len() > 1 {
+                    grid[1].ripple_period / grid[0].ripple_period
+                } else {
+                    1.0
+                };
+                let p0 = entry.shape.ripple_period;
+                let mut xs: Vec<f64> = (-10..=10)
+                    .map(|k| p0 * step.powf(k as f64 / 10.0))
+                    .collect();
+                // A ripple of many periods over the travel explains almost nothing one coarse
+                // step (×1.25) off its period, so the coarse best can be anywhere: add the
+                // peaks of a fine position periodogram of the residual without the ripple.
+                if let (Some(lo), Some(hi)) = (grid.first(), grid.last()) {
+                    for peak in
+                        periodogram_peaks(model, p, e, lo.ripple_period, hi.ripple_period, 3)
+                    {
+                        xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
+                    }
+                }
+                let set_period =
+                    |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
+                line_search(model, p, e, &xs, &set_period);
+            }
+            EffectKind::Compliance => search_compliance(model, p, e),
+            EffectKind::Quantization => search_quantum(model, p, e),
+            EffectKind::Backlash => search_backlash(model, p, e),
+            EffectKind::Stribeck => search_stick(model, p, e, start),
+            _ => {}
+        }
+    }
+}
+
+fn set_mode_frequency(m: &mut Model, e: usize, f: f64) {
+    m.effects[e].shape.compliance_frequency = f;
+}
+
+fn set_mode_damping(m: &mut Model, e: usize, z: f64) {
+    m.effects[e].shape.compliance_damping = z;
+}
+
+/// Compliance: the coupled mode (frequency, damping ratio). The diagnosis places it on a
+/// coarse grid (frequency steps of 25 %, two damping ratios); the column's fit is sharp in
+/// both. A joint grid of frequencies (the diagnosis's own grid plus ±30 % around the current
+/// mode in 5 % steps, up to 0.45× the sample rate) × damping ratios 0.02–0.8, then alternating
+/// golden sections on ln f and ln ζ.
+fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
+    let fs = 1.0 / p.dt;
+    let f_max = 0.45 * fs;
+    let f0 = model.effects[e].shape.compliance_frequency;
+    let mut freqs: Vec<f64> =
+        sim_plant::effects::shape_grid(EffectKind::Compliance, &p.trajectory())
+            .iter()
+            .map(|s| s.compliance_frequency)
+            .collect();
+    freqs.dedup();
+    freqs.extend((-6..=6).map(|k| f0 * 1.05f64.powi(k)));
+    // Above the record's band only J2/(J1·ω²) is identified; a few modes up there let the
+    // refit take that limit instead of a resonance inside the band.
+    if let Some(&top) = freqs.iter().max_by(|a, b| a.total_cmp(b)) {
+        freqs.extend((1..=3).map(|k| top * 1.6f64.powi(k)));
+    }
+    freqs.retain(|&f| f > 0.0 && f < f_max);
+    let zetas = [0.02, 0.035, 0.06, 0.1, 0.16, 0.25, 0.4, 0.6, 0.8];
+    grid_search(
+        model,
+        p,
+        e,
+        &zetas,
+        &set_mode_damping,
+        &freqs,
+        &set_mode_frequency,
+    );
+    // Coordinate golden sections in the logarithms.
+    let set_lf = |m: &mut Model, e: usize, x: f64| set_mode_frequency(m, e, x.exp().min(f_max));
+    let set_lz = |m: &mut Model, e: usize, x: f64| set_mode_damping(m, e, x.exp());
+    let polish = |model: &mut Model| {
+        let lf = model.effects[e].shape.compliance_frequency.ln();
+        golden(model, p, e, (lf - 0.1, lf + 0.1), lf, 12, &set_lf);
+        let lz = model.effects[e].shape.compliance_damping.ln();
+        golden(model, p, e, (lz - 0.4, lz + 0.4), lz, 12, &set_lz);
+    };
+    for _ in 0..2 {
+        polish(model);
+    }
+    // Then the motion form of the column (`J1·H₂·a`, no command noise in it), searched in its
+    // own coordinates: with unit J1 and no ratio the column is `H₂·a` at the locked-motor mode
+    // (f₂, ζ₂) and its amplitude is −J2, linear. The same joint grid and golden sections, then
+    // the split J1 = J − J2 maps it back to the coupled mode (f = f₂·√(1 + J2/J1)) and the
+    // amplitude −J2/J1; the load's viscous friction then enters as (J2·s + b)². Kept only if
+    // it fits better than the command form.
+    let command_form = model.clone();
+    let r0 = ls_rss(&mut model.clone(), p);
+    let mut m = model.clone();
+    sim_plant::effects::compliance::set_unit_motion_form(&mut m.effects[e].shape);
+    let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
+    freqs2.extend(&freqs);
+    freqs2.retain(|&f| f > 0.5);
+    grid_search(
+        &mut m,
+        p,
+        e,
+        &zetas,
+        &set_mode_damping,
+        &freqs2,
+        &set_mode_frequency,
+    );
+    for _ in 0..2 {
+        polish(&mut m);
+    }
+    ls_rss(&mut m, p);
+    let j2 = -m.effects[e].params[0].value;
+    let j1 = m.inertia.value - j2;
+    if j2 > 0.0 && j1 > 0.0 && j2.is_finite() {
+        let ratio = j2 / j1;
+        let b = m
+            .effects
+            .iter()
+            .find(|x| x.kind == EffectKind::Viscous)
+            .and_then(|x| x.params.first())
+            .map_or(0.0, |q| q.value);
+        let sh = &mut m.effects[e].shape;
+        let s = (1.0 + ratio).sqrt();
+        sh.compliance_frequency *= s;
+        sh.compliance_damping *= s;
+        sh.compliance_near_inertia = j1;
+        sh.compliance_ratio = ratio;
+        sh.compliance_load_damping = b.max(0.0);
+        ls_rss(&mut m, p);
+        polish(&mut m);
+        if ls_rss(&mut m.clone(), p) < r0 {
+            *model = m;
+            return;
+        }
+    }
+    *model = command_form;
+}
+
+fn set_backlash_width(m: &mut Model, e: usize, b: f64) {
+    m.effects[e].shape.backlash_width = b;
+}
+
+fn set_load_time(m: &mut Model, e: usize, tau: f64) {
+    m.effects[e].shape.backlash_load_time = tau;
+}
+
+/// Backlash: the gap width b and the load's viscous time constant τ. The fit is sharp and
+/// multimodal in the width (it sets when each crossing of the gap ends, and a width off by a
+/// step can lock onto a different set of crossings), smooth but not flat in τ. A joint grid of
+/// τ (0.03–10 s in steps of ×1.6, and no decay) × widths over the diagnosis's whole width
+/// range in steps of 10 % (the minimum in b is about ±15 % wide and moves with τ), then
+/// widths ±15 % around the best in steps of 1.5 %, then alternating golden sections on ln τ
+/// and ln b.
+///
+/// With a load position (see `backlash::measured_column`) the column does not depend on the
+/// width: the width is the measured one (`backlash::measured_width`) and only τ is searched
+/// (the same τ grid, then a golden section on ln τ).
+fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
+    let taus = [
+        0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
+    ];
+    let set_lb = |m: &mut Model, e: usize, x: f64| set_backlash_width(m, e, x.exp());
+    let set_lt = |m: &mut Model, e: usize, x: f64| set_load_time(m, e, x.exp());
+    if let Some(b) = backlash::measured_width(&p.trajectory()) {
+        set_backlash_width(model, e, b);
+        line_search(model, p, e, &taus, &set_load_time);
+        let tau = model.effects[e].shape.backlash_load_time;
+        if tau > 0.0 {
+            let lt = tau.ln();
+            golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 12, &set_lt);
+        }
+        return;
+    }
+    let grid = sim_plant::effects::shape_grid(EffectKind::Backlash, &p.trajectory());
+    let (lo, hi) = grid.iter().fold((f64::INFINITY, 0.0f64), |(l, h), s| {
+        (l.min(s.backlash_width), h.max(s.backlash_width))
+    });
+    if !(lo > 0.0 && hi > lo) {
+        return;
+    }
+    let steps = ((hi / lo).ln() / 1.1f64.ln()).ceil() as i32;
+    let widths: Vec<f64> = (0..=steps).map(|k| lo * 1.1f64.powi(k)).collect();
+    grid_search(
+        model,
+        p,
+        e,
+        &taus,
+        &set_load_time,
+        &widths,
+        &set_backlash_width,
+    );
+    let b0 = model.effects[e].shape.backlash_width;
+    let fine: Vec<f64> = (-10..=10).map(|k| b0 * 1.015f64.powi(k)).collect();
+    line_search(model, p, e, &fine, &set_backlash_width);
+    for _ in 0..2 {
+        let tau = model.effects[e].shape.backlash_load_time;
+        if tau > 0.0 {
+            let lt = tau.ln();
+            golden(model, p, e, (lt - 0.6, lt + 0.6), lt, 10, &set_lt);
+        }
+        let lb = model.effects[e].shape.backlash_width.ln();
+        golden(model, p, e, (lb - 0.015, lb + 0.015), lb, 8, &set_lb);
+    }
+}
+
+/// Sets the stick window of the stribeck effect `e` and of the dry-friction terms it gates.
+fn set_stick(m: &mut Model, e: usize, vh: f64) {
+    let vh = vh.max(0.0);
+    m.effects[e].shape.stick_velocity = vh;
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            x.shape.stick_velocity = vh;
+        }
+    }
+}
+
+/// Stribeck: the refit's form of the column (see `sim_plant::effects::stribeck::fingerprint`:
+/// slip, bristle transient, stick hold), its shapes searched in turn:
+///
+/// * the hold's amplitude is held at 1 — at rest the friction *is* the applied torque; a free
+///   amplitude is not identified on a record that never sticks, and on one that does it only
+///   trades with the motion terms;
+/// * the sign shape (ε, lead) jointly with Coulomb's ([`search_dry_sign`]): the excess flips
+///   with the Coulomb level at each reversal, and being the larger part near v = 0 it decides
+///   where the flip is;
+/// * the stick window vh on a log grid of 1e-4…1e-2 of the top speed, then golden section
+///   (the motion terms are not gated, so a window wider than the rest's velocity noise costs
+///   at every fast reversal and the RSS has an interior minimum);
+/// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
+///   once the stick phases are no longer its to explain. LM then refines vs.
+fn search_stick(model: &mut Model, p: &Prepared, e: usize, start: StickStart) {
+    let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if vmax.is_nan() || vmax <= 0.0 {
+        return;
+    }
+    if let Some(h) = model.effects[e]
+        .params
+        .iter_mut()
+        .find(|q| q.name == "hold")
+    {
+        h.value = 1.0;
+        h.free = false;
+    }
+    search_dry_sign(model, p, e, start.search_lead);
+    let xs = sim_plant::effects::signal::log_space(1e-4 * vmax, 1e-2 * vmax, 9);
+    let (v0, _) = line_search(model, p, e, &xs, &set_stick);
+    if v0 > 0.0 {
+        let set_l = |m: &mut Model, e: usize, x: f64| set_stick(m, e, x.exp());
+        let l = v0.ln();
+        golden(model, p, e, (l - 0.6, l + 0.6), l, 10, &set_l);
+    }
+    let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
+    let set_vs = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_velocity = x;
+    let set_d = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_exponent = x;
+    let vss = distinct(grid.iter().map(|s| s.stribeck_velocity));
+    let ds = match start.exponent {
+        Some(d) => vec![d],
+        None => distinct(grid.iter().map(|s| s.stribeck_exponent)),
+    };
+    grid_search(model, p, e, &ds, &set_d, &vss, &set_vs);
+}
+
+/// Sets the sign shape of effect `e` and of every Coulomb / asymmetry term: dry friction
+/// reverses as one.
+fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
+    f(&mut m.effects[e].shape);
+    for x in m.effects.iter_mut() {
+        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+            f(&mut x.shape);
+        }
+    }
+}
+
+/// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms' (see
+/// [`search_sign`]).
+fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize, search_lead: bool) {
+    let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
+    let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
+    search_sign(model, p, e, &set_eps, &set_lead, search_lead);
+}
+
+/// The distinct values of a grid's shape coordinate, ascending.
+fn distinct(xs: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = xs.collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v
+}
+
+/// Where the Stribeck refit's searches start (see [`super::refit_all`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct StickStart {
+    /// Search the dry-friction sign lead jointly with the smoothing ε; otherwise hold it at 0
+    /// (the reversal where the zero-phase velocity crosses zero) and search ε alone.
+    search_lead: bool,
+    /// Hold the Stribeck exponent δ at this value; `None` searches vs × δ on the grid.
+    exponent: Option<f64>,
+}
+
+impl StickStart {
+    /// Everything searched: the only start of a model without a free Stribeck term.
+    pub(super) const SEARCHED: StickStart = StickStart {
+        search_lead: true,
+        exponent: None,
+    };
+
+    /// The starts of a Stribeck refit: everything searched; the lead held at 0; and the lead
+    /// held at 0 with δ held at each exponent of the Stribeck shape grid (1 and 2).
+    pub(super) fn all(p: &Prepared) -> Vec<StickStart> {
+        let grid = sim_plant::effects::shape_grid(EffectKind::Stribeck, &p.trajectory());
+        let ds = distinct(grid.iter().map(|s| s.stribeck_exponent));
+        let mut out = vec![
+            StickStart::SEARCHED,
+            StickStart {
+                search_lead: false,
+                exponent: None,
+            },
+        ];
+        out.extend(ds.into_iter().map(|d| StickStart {
+            search_lead: false,
+            exponent: Some(d),
+        }));
+        out
+    }
+}
+
+/// A dry-friction sign shape: smoothing ε (Coulomb's grid) × sign lead (−6…8 samples) on a
+/// joint grid — the two trade off against each other — then the lead by golden section.
+fn search_sign(
+    model: &mut Model,
+    p: &Prepared,
+    e: usize,
+    set_eps: &dyn Fn(&mut Model, usize, f64),
+    set_lead: &dyn Fn(&mut Model, usize, f64),
+    search_lead: bool,
+) {
+    let dt = p.dt;
+    let eps: Vec<f64> = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory())
+        .iter()
+        .map(|s| s.sign_epsilon)
+        .collect();
+    if !search_lead {
+        set_lead(model, e, 0.0);
+        line_search(model, p, e, &eps, set_eps);
+        return;
+    }
+    let leads: Vec<f64> = [
+        -6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+    ]
+    .iter()
+    .map(|k| k * dt)
+    .collect();
+    grid_search(model, p, e, &eps, set_eps, &leads, set_lead);
+    let l = model.effects[e].shape.sign_lead;
+    golden(model, p, e, (l - 0.5 * dt, l + 0.5 * dt), l, 8, set_lead);
+}
+
+fn set_quantum(m: &mut Model, e: usize, d: f64) {
+    m.effects[e].shape.quantum = d;
+    if let Some(q) = m.effects[e].params.iter_mut().find(|q| q.name == "step") {
+        q.value = d;
+    }
+}
+
+/// Quantization: the step Δ. The fit of the sawtooth `u − Q_Δ(u)` is very multimodal in Δ: at
+/// a relative error ε the sawtooth slips by ε·K steps where the command spans K = max|u|/Δ
+/// steps, so it decorrelates once ε·K ≈ ½. A dense scan ±5 % around the diagnosis's step at a
+/// relative spacing of 0.15/K (0.01 %–0.5 %), then golden section between the neighbours of the
+/// best.
+fn search_quantum(model: &mut Model, p: &Prepared, e: usize) {
+    let d0 = model.effects[e].shape.quantum;
+    if d0 <= 0.0 {
+        return;
+    }
+    let traj = p.trajectory();
+    let (u, w) = traj.recorded_input();
+    let range = u[w].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let k = (range / d0).max(1.0);
+    let step = (0.15 / k).clamp(1e-4, 5e-3);
+    let half = (0.05f64.ln_1p() / step.ln_1p()).ceil() as i32;
+    let xs: Vec<f64> = (-half..=half).map(|i| d0 * (1.0 + step).powi(i)).collect();
+    let (d1, _) = line_search(model, p, e, &xs, &set_quantum);
+    golden(
+        model,
+        p,
+        e,
+        (d1 / (1.0 + step), d1 * (1.0 + step)),
+        d1,
+        10,
+        &set_quantum,
+    );
+    // The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
+    // section, then Δ once more at that blur.
+    let d = model.effects[e].shape.quantum;
+    let set_blur = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.quantum_blur = x.max(0.0);
+    let blurs: Vec<f64> = [0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.18, 0.25, 0.35]
+        .iter()
+        .map(|r| r * d)
+        .collect();
+    let (b0, _) = line_search(model, p, e, &blurs, &set_blur);
+    let h = 0.03 * d;
+    golden(model, p, e, ((b0 - h).max(0.0), b0 + h), b0, 10, &set_blur);
+    let d = model.effects[e].shape.quantum;
+    golden(
+        model,
+        p,
+        e,
+        (d / (1.0 + 2.0 * step), d * (1.0 + 2.0 * step)),
+        d,
+        10,
+        &set_quantum,
+    );
+}
+
+/// Best grid shape of `kind` against the current model's residual (largest ERR).
+pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape> {
+    let d = residual::design(model, p);
+    let g0i = gram_inverse(&gram(&d.cols));
+    let base = fit::least_squares(&d.cols, &d.y).ok()?;
+    diagnose::scan_shape(kind, p, &d.cols, &g0i, &base.residual, base.rss.max(1e-300))
+        .map(|(s, _)| s)
+}
