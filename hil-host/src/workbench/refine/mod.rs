@@ -122,8 +122,9 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
     }
 }
 
-/// Refit all free parameters of a model: least squares for the amplitudes, the searches of
-/// the shape searches (`search::search_shapes`), then Levenberg–Marquardt over the smooth shapes of free effects.
+/// Refit all free parameters of a model: least squares for the amplitudes, the shape searches
+/// (`search::search_shapes`), then Levenberg–Marquardt over the smooth shapes of free
+/// effects.
 ///
 /// The LM is a *variable projection*: its unknowns are the shapes alone (log-parameterised),
 /// and at each trial shape the amplitudes are the bias-compensated least-squares solution

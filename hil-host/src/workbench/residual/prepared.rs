@@ -1,0 +1,357 @@
+//! A recording made ready for the residuals: position differentiated by the smoothing
+//! differentiator, the filter's edge samples dropped, and the noise the encoder and the input
+//! leave in the regressors estimated (quantisation step, position noise, the probe of the
+//! differentiator's response to it).
+
+use sim_plant::effects::Trajectory;
+
+use super::super::data::Recording;
+use super::super::diff;
+use super::super::fit;
+
+/// A recording after differentiation, with the filter's edge samples dropped.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// Time.
+    pub time: Vec<f64>,
+    /// Measured input (SI force/torque), low-passed by the differentiator's zero-phase filter
+    /// ("parallel filtering", as in IDIM): both sides of the inverse-dynamics equation then
+    /// see the same bandwidth. Without it the input's content above the cut-off — sensor noise,
+    /// but also real torque the feedback puts there (PD on a quantised encoder) — has no
+    /// counterpart in the smoothed acceleration and ends up as structured residual that
+    /// broadband fingerprints (compliance, delay) happily "explain".
+    pub input: Vec<f64>,
+    /// Measured input as recorded (SI), the whole record (edges included: fingerprints filter
+    /// it with its history, see `sim_plant::effects::Trajectory::raw_input`).
+    pub raw_input: Vec<f64>,
+    /// Index in `raw_input` of the first kept sample.
+    pub raw_offset: usize,
+    /// White-noise RMS of the raw input (second-difference estimate) times the filter's noise
+    /// gain: the RMS a perfect model would leave in the equation-error residual.
+    pub noise_floor: f64,
+    /// Measured (raw) position.
+    pub raw_position: Vec<f64>,
+    /// Acceleration over the whole record (edges included, indexed as `raw_input`): dynamic
+    /// fingerprints of the motion filter it from the record's start (see
+    /// `sim_plant::effects::Trajectory::raw_acceleration`).
+    pub raw_acceleration: Vec<f64>,
+    /// Smoothed position.
+    pub position: Vec<f64>,
+    /// Velocity.
+    pub velocity: Vec<f64>,
+    /// Acceleration.
+    pub acceleration: Vec<f64>,
+    /// Sample period.
+    pub dt: f64,
+    /// Differentiator cut-off used (Hz).
+    pub cutoff_hz: f64,
+    /// Motion-based reconstruction of the input (see [`Prepared::trajectory`]).
+    pub input_instrument: Vec<f64>,
+    /// Speed below which the joint may be stuck: the peak speed the differentiator shows for
+    /// one step of the position's quantisation (the smallest nonzero position change in the
+    /// record; about 0 for unquantised data). A joint at rest does not show white
+    /// quantisation noise but whole counts flickering as its spring and bristles take up the
+    /// holding torque: each flicker is a one-count step, and 3σ of white quantisation noise
+    /// (about 40 % of this) left most of a held phase outside the band, where the clamp to the
+    /// breakaway level then mispredicted it. See [`super::static_friction`].
+    pub stick_velocity: f64,
+    /// Variance of the white noise on the recorded position (encoder quantisation and sensor
+    /// noise, see `position_noise_variance`). Through the differentiator it reaches every
+    /// regressor built linearly from the motion — the acceleration, the velocity, the
+    /// compliance motion form's resonant filter of the acceleration — and least squares with
+    /// noisy regressors is biased (errors-in-variables: at a 40 Hz cut-off a 16-bit encoder's
+    /// acceleration noise is a few percent of a joint's acceleration, and the inertia comes
+    /// out that much low); [`super::refit`] takes the noise's covariance off the Gram matrix (see
+    /// [`super::noise_gram`]).
+    pub position_noise_var: f64,
+    /// [`Prepared::position_noise_var`] through the differentiator's acceleration gain: the
+    /// inertia column's own noise variance, all a model without compliance compensates (see
+    /// [`super::refit`]).
+    pub acceleration_noise_var: f64,
+    /// Smoothed load-side position (an output encoder, `Recording::load_output`), through the
+    /// same zero-phase filter as [`Prepared::position`] and trimmed to the same window; empty
+    /// when the recording has none. The deflection δ = position − load_position is then
+    /// measured, not inferred (see `sim_plant::effects::backlash::fingerprint`).
+    pub load_position: Vec<f64>,
+    /// Variance of the load encoder's noise in the load's acceleration (as
+    /// [`Prepared::acceleration_noise_var`]; 0 without a load position).
+    pub load_acceleration_noise_var: f64,
+    /// The same preparation applied to a unit impulse of the raw position (zero input), on a
+    /// record of the same length and window: the columns it gives are the impulse responses
+    /// of the motion-linear regressors to the position's noise (see [`super::noise_gram`]). `None`
+    /// on the probe itself and on records too short to hold the differentiator's response.
+    pub noise_probe: Option<Box<Prepared>>,
+}
+
+impl Prepared {
+    /// RMS the position's noise (encoder quantisation and sensor noise) leaves in an
+    /// equation-error residual through a model of inertia `inertia`: `J·σ_a`, the inertia
+    /// times the acceleration's share of that noise after the differentiator. The velocity's
+    /// share (through the viscous friction) is left out: the differentiator's velocity gain
+    /// is ~ω_c below its acceleration gain.
+    pub fn encoder_floor(&self, inertia: f64) -> f64 {
+        inertia.abs() * self.acceleration_noise_var.max(0.0).sqrt()
+    }
+
+    /// Noise floor of an equation-error residual of a model of inertia `inertia`: the input's
+    /// own noise ([`Prepared::noise_floor`]) and [`Prepared::encoder_floor`], independent and
+    /// so added in power. With a coarse encoder and a sharp differentiator the second
+    /// dominates — a rigid joint on a 2¹⁶-count encoder, 0.2 rad/s and a 40 Hz cut-off leaves
+    /// 6× the input noise — and a floor of the input noise alone would read it as a missing
+    /// effect.
+    pub fn equation_floor(&self, inertia: f64) -> f64 {
+        self.noise_floor.hypot(self.encoder_floor(inertia))
+    }
+
+    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate).
+    pub fn new(rec: &Recording, cutoff_hz: Option<f64>) -> Self {
+        let fc = cutoff_hz.unwrap_or_else(|| diff::default_cutoff(rec.dt));
+        let d = diff::differentiate(&rec.output, rec.dt, fc);
+        let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
+        let r = e..rec.len() - e;
+        let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
+        let floor =
+            super::super::metrics::noise_floor(&rec.input) * diff::noise_gain(fc, 1.0 / rec.dt);
+        let acc_gain2 = diff::acceleration_noise_gain(fc, rec.dt).powi(2);
+        let position_noise_var = position_noise_variance(&rec.output);
+        let acceleration_noise_var = position_noise_var * acc_gain2;
+        // A load column of another length is not the same record's: ignored rather than
+        // misaligned (`data::load` reads both from one file, so only a hand-built recording
+        // can get here).
+        let load = rec
+            .load_output
+            .as_ref()
+            .filter(|x| x.len() == rec.output.len());
+        let (load_position, load_acceleration_noise_var) = match load {
+            Some(x) => (
+                diff::filtfilt(x, fc, 1.0 / rec.dt)[r.clone()].to_vec(),
+                position_noise_variance(x) * acc_gain2,
+            ),
+            None => (Vec::new(), 0.0),
+        };
+        let mut p = Prepared {
+            time: rec.time[r.clone()].to_vec(),
+            input: uf[r.clone()].to_vec(),
+            raw_input: rec.input.clone(),
+            raw_offset: e,
+            noise_floor: floor,
+            raw_position: rec.output[r.clone()].to_vec(),
+            position: d.position[r.clone()].to_vec(),
+            velocity: d.velocity[r.clone()].to_vec(),
+            acceleration: d.acceleration[r].to_vec(),
+            raw_acceleration: d.acceleration.clone(),
+            dt: rec.dt,
+            cutoff_hz: fc,
+            input_instrument: Vec::new(),
+            stick_velocity: quantisation_step(&rec.output) * diff::step_velocity_peak(fc, rec.dt),
+            position_noise_var,
+            acceleration_noise_var,
+            load_position,
+            load_acceleration_noise_var,
+            noise_probe: None,
+        };
+        p.input_instrument = instrument(&p);
+        p.noise_probe = noise_probe(rec.len(), e, rec.dt, fc).map(Box::new);
+        p
+    }
+
+    /// Borrow as a library trajectory.
+    ///
+    /// Its `input` is the **instrument**, not the measured input: fingerprints built from the
+    /// input (dead zone, delay, quantisation) would otherwise contain the input's measurement
+    /// noise, which is also in the target of the regression, and "explain" the residual's own
+    /// noise (errors-in-variables). The instrument is the least-squares reconstruction of the
+    /// input from motion alone (`a`, `v`, `sign v`, 1), so it is independent of input noise
+    /// while following the input's shape.
+    pub fn trajectory(&self) -> Trajectory<'_> {
+        Trajectory {
+            dt: self.dt,
+            input: &self.input_instrument,
+            position: &self.position,
+            velocity: &self.velocity,
+            acceleration: &self.acceleration,
+            raw_input: &self.raw_input,
+            raw_offset: self.raw_offset,
+            raw_acceleration: &self.raw_acceleration,
+            lowpass_hz: self.cutoff_hz,
+            load_position: &self.load_position,
+        }
+    }
+
+    /// Samples.
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+}
+
+/// Samples between the window's start and the probe's impulse: the zero-phase
+/// differentiator's response reaches about 4/fc either side of it (100 samples at 40 Hz and
+/// 1 kHz), so the whole response lies inside the window, and the rest of the window holds the
+/// ringing tail of a resonant column.
+const PROBE_LEAD: usize = 256;
+
+/// Longest window of the probe, in samples after its impulse: the differentiator's response
+/// is ~100 samples long, and a lightly damped compliance mode rings for 1/(ζ₂ω₂) — at
+/// ζ₂ω₂ = 0.3 s⁻¹ the energy left after 2¹⁴ samples at 1 kHz is e⁻¹⁰. Longer records do not
+/// need a longer probe, and a probe as long as a 10⁵-sample record was a full extra
+/// differentiation in every [`Prepared::new`].
+const PROBE_SPAN: usize = 1 << 14;
+
+/// The preparation of a unit impulse of the raw position at [`PROBE_LEAD`] samples into the
+/// window (see [`Prepared::noise_probe`]), on a record as long as the data's but at most
+/// [`PROBE_SPAN`] samples past the impulse; `None` when the window is shorter than twice
+/// [`PROBE_LEAD`].
+fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64) -> Option<Prepared> {
+    let n = len.checked_sub(2 * edge)?;
+    if n < 2 * PROBE_LEAD || dt <= 0.0 {
+        return None;
+    }
+    let n = n.min(PROBE_LEAD + PROBE_SPAN);
+    let len = n + 2 * edge;
+    let mut x = vec![0.0; len];
+    x[edge + PROBE_LEAD] = 1.0;
+    let d = diff::differentiate(&x, dt, fc);
+    let r = edge..len - edge;
+    Some(Prepared {
+        time: (0..n).map(|k| k as f64 * dt).collect(),
+        input: vec![0.0; n],
+        raw_input: vec![0.0; len],
+        raw_offset: edge,
+        noise_floor: 0.0,
+        raw_position: x[r.clone()].to_vec(),
+        position: d.position[r.clone()].to_vec(),
+        velocity: d.velocity[r.clone()].to_vec(),
+        acceleration: d.acceleration[r].to_vec(),
+        raw_acceleration: d.acceleration,
+        dt,
+        cutoff_hz: fc,
+        input_instrument: vec![0.0; n],
+        stick_velocity: 0.0,
+        position_noise_var: 0.0,
+        acceleration_noise_var: 0.0,
+        load_position: Vec::new(),
+        load_acceleration_noise_var: 0.0,
+        noise_probe: None,
+    })
+}
+
+/// Smallest nonzero change between successive samples of a position record (its encoder
+/// step when quantised); 0 for fewer than two samples.
+fn quantisation_step(x: &[f64]) -> f64 {
+    let range = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    x.windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|&d| d > 1e-12 * range)
+        .fold(f64::INFINITY, f64::min)
+        .min(range)
+}
+
+/// Variance of the white noise on a position record (encoder quantisation and sensor noise),
+/// from its fourth difference: white noise of variance σ² gives Δ⁴ a variance of 70σ², while a
+/// joint's motion, smooth at the sample rate, contributes `x⁗·dt⁴` — nothing. Estimated from
+/// the data rather than from the quantisation step (step²/12) because a dithered or noisy
+/// encoder is noisier than its step says, and an encoder held at rest is quieter.
+fn position_noise_variance(x: &[f64]) -> f64 {
+    if x.len() < 5 {
+        return 0.0;
+    }
+    let ss: f64 = x
+        .windows(5)
+        .map(|w| {
+            let d = w[4] - 4.0 * w[3] + 6.0 * w[2] - 4.0 * w[1] + w[0];
+            d * d
+        })
+        .sum();
+    ss / (70.0 * (x.len() - 4) as f64)
+}
+
+/// Motion-based reconstruction of the input: LS fit of the input on (a, v, sign v, 1).
+fn instrument(p: &Prepared) -> Vec<f64> {
+    let n = p.len();
+    let cols = vec![
+        p.acceleration.clone(),
+        p.velocity.clone(),
+        p.velocity.iter().map(|v| v.signum()).collect(),
+        vec![1.0; n],
+    ];
+    match fit::least_squares(&cols, &p.input) {
+        Ok(f) => p
+            .input
+            .iter()
+            .zip(&f.residual)
+            .map(|(u, e)| u - e)
+            .collect(),
+        Err(_) => p.input.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The probe stops [`PROBE_SPAN`] samples after its impulse on a long record, and its
+    /// acceleration response still carries the differentiator's whole noise gain.
+    #[test]
+    fn noise_probe_is_capped_and_complete() {
+        let (n, dt, fc) = (100_000, 1e-3, 40.0);
+        let edge = diff::edge_samples(dt, fc);
+        let probe = noise_probe(n, edge, dt, fc).expect("probe");
+        assert_eq!(probe.len(), PROBE_LEAD + PROBE_SPAN);
+        assert_eq!(probe.raw_acceleration.len(), probe.len() + 2 * edge);
+        let e: f64 = probe.acceleration.iter().map(|a| a * a).sum();
+        let ga = diff::acceleration_noise_gain(fc, dt).powi(2);
+        assert!((e / ga - 1.0).abs() < 1e-6, "{e} vs {ga}");
+        // A window shorter than twice the lead holds no probe.
+        assert!(noise_probe(2 * edge + PROBE_LEAD, edge, dt, fc).is_none());
+    }
+
+    /// The fourth-difference estimate sees the noise on a position, not the motion under it.
+    #[test]
+    fn position_noise_variance_ignores_smooth_motion() {
+        let sigma: f64 = 1e-4;
+        let x: Vec<f64> = (0..20_000)
+            .map(|i| {
+                let u = crate::workbench::stats::tests_support::unit_uniform(i as u64);
+                (i as f64 * 2e-3).sin() * 2.0 + (u - 0.5) * 12f64.sqrt() * sigma
+            })
+            .collect();
+        let v = position_noise_variance(&x);
+        assert!((v / (sigma * sigma) - 1.0).abs() < 0.1, "{v:e}");
+        let smooth: Vec<f64> = (0..20_000).map(|i| (i as f64 * 2e-3).sin()).collect();
+        assert!(position_noise_variance(&smooth) < 1e-6 * sigma * sigma);
+    }
+
+    /// that follows the motor exactly gives δ ≡ 0), its noise is estimated like the motor's,
+    /// and a load column of another length is ignored rather than misaligned.
+    #[test]
+    fn load_position_is_processed_like_the_motor_position() {
+        let n = 3000;
+        let dt = 1e-3;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * dt * 3.0).sin()).collect();
+        let rec = |load: Option<Vec<f64>>| Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|i| i as f64 * dt).collect(),
+            input: x.iter().map(|v| 0.1 * v).collect(),
+            output: x.clone(),
+            load_output: load,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: crate::workbench::data::Columns::new("u_Nm", "q_rad"),
+        };
+        let p = Prepared::new(&rec(Some(x.clone())), Some(40.0));
+        assert_eq!(p.load_position.len(), p.position.len());
+        assert!(p.load_position.iter().zip(&p.position).all(|(a, b)| a == b));
+        assert_eq!(p.trajectory().load(), Some(&p.load_position[..]));
+        assert!((p.load_acceleration_noise_var - p.acceleration_noise_var).abs() < 1e-12);
+        let short = Prepared::new(&rec(Some(x[..n - 1].to_vec())), Some(40.0));
+        assert!(short.load_position.is_empty() && short.trajectory().load().is_none());
+        assert!(Prepared::new(&rec(None), Some(40.0))
+            .load_position
+            .is_empty());
+    }
+}
