@@ -65,6 +65,12 @@
 //! loop) 4314–4740× free, 4126–4506× spring; the final code with that same driving
 //! 5059–5315× free, 4988–5419× spring. So ≥ 5000× is reached with the tabulated command
 //! (every preset, both environments) and, within noise, with the old driving too.
+//!
+//! **Re-measured 2026-11-24** on a quiet host (load average 0.8): 3874–4023× free,
+//! 3694–4048× spring, 253–288 CPU µs per simulated s — yet callgrind still counts 279.9
+//! instructions per substep on harmonic-drive-60 free, exactly the table above. The code did
+//! not slow down; this VM's cores are ~1.5× slower per instruction than the one of the
+//! figures above. Compare runs within one session, and the instruction counts across hosts.
 
 use std::hint::black_box;
 use std::time::Instant;

@@ -15,7 +15,7 @@
 //! near crossings).
 
 use hil_host::workbench::residual::Prepared;
-use jointlab_tests::hidden::{cutoff, generate, Family, Trial};
+use jointlab_tests::hidden::{cutoff, generate, probe_args, Family, Trial};
 use sim_plant::effects::{backlash, signal};
 
 fn col_from_delta_lp(d: &[f64], tau: f64, dt: f64) -> Vec<f64> {
@@ -65,9 +65,7 @@ struct Rec<'a> {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    for pair in args.chunks(2) {
-        let seed: u64 = pair[0].parse().expect("seed");
-        let rho: f64 = pair.get(1).and_then(|s| s.parse().ok()).unwrap_or(2.0);
+    for (seed, rho) in probe_args(&args, "backlash_probe SEED RHO [SEED RHO …]") {
         let Some(t) = generate(seed, &[Family::Backlash], rho) else {
             println!("seed {seed}: unstable");
             continue;

@@ -12,15 +12,22 @@
 //! the truth.
 
 use hil_host::workbench::residual::Prepared;
-use jointlab_tests::hidden::{cutoff, generate_with, Family, TrialOptions};
+use jointlab_tests::hidden::{cutoff, generate_with, probe_args, Family, TrialOptions};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    // FAMILY `null`: no hidden effect.
-    let fam = Family::ALL.iter().copied().find(|f| f.name() == args[0]);
-    for pair in args[1..].chunks(2) {
-        let seed: u64 = pair[0].parse().expect("seed");
-        let rho: f64 = pair.get(1).and_then(|s| s.parse().ok()).unwrap_or(2.0);
+    let usage = "load_encoder_probe FAMILY SEED RHO [SEED RHO …] (FAMILY `null`: no hidden effect)";
+    let fam_name = args.first().map_or("", String::as_str);
+    let fam = Family::ALL.iter().copied().find(|f| f.name() == fam_name);
+    if fam.is_none() && fam_name != "null" {
+        eprintln!("unknown family `{fam_name}`");
+    }
+    let trials = if fam.is_none() && fam_name != "null" {
+        probe_args(&[], usage)
+    } else {
+        probe_args(args.get(1..).unwrap_or_default(), usage)
+    };
+    for (seed, rho) in trials {
         let opts = TrialOptions { load_encoder: true };
         let Some(t) = generate_with(seed, fam.as_slice(), rho, opts) else {
             println!("seed {seed}: unstable");

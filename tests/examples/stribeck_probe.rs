@@ -24,7 +24,7 @@ use hil_host::workbench::fit;
 use hil_host::workbench::model::Model;
 use hil_host::workbench::refine;
 use hil_host::workbench::residual::Prepared;
-use jointlab_tests::hidden::{cutoff, generate, start_model, Family, Trial};
+use jointlab_tests::hidden::{cutoff, generate, probe_args, start_model, Family, Trial};
 use sim_plant::effects::{signal, EffectKind};
 
 fn rms(x: &[f64]) -> f64 {
@@ -186,9 +186,7 @@ fn central(x: &[f64], dt: f64) -> Vec<f64> {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    for pair in args.chunks(2) {
-        let seed: u64 = pair[0].parse().expect("seed");
-        let rho: f64 = pair.get(1).and_then(|s| s.parse().ok()).unwrap_or(2.0);
+    for (seed, rho) in probe_args(&args, "stribeck_probe SEED RHO [SEED RHO …]") {
         let Some(t) = generate(seed, &[Family::Stribeck], rho) else {
             println!("seed {seed}: unstable");
             continue;

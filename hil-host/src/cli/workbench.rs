@@ -366,7 +366,37 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         Some(f) => Some(a.data.prepared(f)?),
         None => None,
     };
-    let run = refine::auto(&mut model, &p, val.as_ref(), &opts, a.max_steps)?;
+    // Each step refits its leading candidates in full (minutes on a long record): a spinner
+    // on stderr with the steps so far (drawn only on a terminal, so pipes and --json are clean).
+    let spinner = indicatif::ProgressBar::new_spinner();
+    if let Ok(st) = indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}") {
+        spinner.set_style(st);
+    }
+    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    let run = refine::auto_observed(
+        &mut model,
+        &p,
+        val.as_ref(),
+        &opts,
+        a.max_steps,
+        &mut |s: &AutoStep| {
+            let what = match (&s.added, &s.replaced) {
+                (Some(e), Some(r)) => format!("{e} replaces {r}"),
+                (None, Some(r)) => format!("remove {r}"),
+                (Some(e), None) => format!("add {e}"),
+                (None, None) => "start".into(),
+            };
+            spinner.println(format!(
+                "step {}: {what}, fit {:.3} %, RMS {:.4e}",
+                s.step, s.score.fit_percent, s.score.rms
+            ));
+            spinner.set_message(format!(
+                "step {}: ranking what is left and refitting the leading candidates",
+                s.step + 1
+            ));
+        },
+    )?;
+    spinner.finish_and_clear();
     if let Some(f) = &a.save_model {
         model.save(f)?;
     }
@@ -453,6 +483,9 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         println!("final diagnosis: {}", run.last.verdict.text);
         if let Some(r) = report_path {
             println!("report: {}", r.display());
+        }
+        if let Some(f) = &a.save_model {
+            println!("model written to {}", f.display());
         }
     }
     Ok(())

@@ -88,8 +88,35 @@ fn main() {
             eprintln!("no family in {families:?}; known: {}", names.join(", "));
             std::process::exit(2);
         }
-        let o = run_with(seed, &fam, rho, TrialOptions { load_encoder });
-        println!("{o:?}");
+        match run_with(seed, &fam, rho, TrialOptions { load_encoder }) {
+            None => println!(
+                "unstable: the drawn loop diverges with the effect or on its effect-free twin \
+                 (the bench skips such a draw)"
+            ),
+            Some(o) => {
+                let names: Vec<&str> = o.families.iter().map(|f| f.name()).collect();
+                println!("hidden:     {}", names.join(" + "));
+                println!("measured ρ: {:.3} (target {rho})", o.rho);
+                println!("rank 1:     {}", o.top.as_deref().unwrap_or("(none)"));
+                println!(
+                    "verdict:    {}",
+                    o.verdict
+                        .as_deref()
+                        .unwrap_or("no significant missing effect")
+                );
+                if o.families.len() == 1 {
+                    println!(
+                        "refit:      validation RMS {:.3}× the noise floor after fit --add {} \
+                         (bar 1.1)",
+                        o.val_ratio,
+                        names.join("")
+                    );
+                }
+                if o.families.len() == 2 {
+                    println!("--auto added: {}", o.auto_added.join(", "));
+                }
+            }
+        }
         return;
     }
     let Bench {

@@ -761,3 +761,32 @@ pub fn long_record(seed: u64, repeats: usize) -> Recording {
     r.time = (0..r.input.len()).map(|k| k as f64 * DT).collect();
     r
 }
+
+/// The `SEED RHO [SEED RHO …]` arguments of the probe examples (ρ defaults to 2 for a last
+/// seed without one). With none, or one that does not parse, prints `usage` and where the
+/// bench's seeds come from, and exits with status 2: a probe that silently does nothing reads
+/// like one that found nothing.
+pub fn probe_args(args: &[String], usage: &str) -> Vec<(u64, f64)> {
+    let parsed: Option<Vec<(u64, f64)>> = args
+        .chunks(2)
+        .map(|p| {
+            let seed = p.first()?.parse().ok()?;
+            let rho = match p.get(1) {
+                Some(r) => r.parse().ok()?,
+                None => 2.0,
+            };
+            Some((seed, rho))
+        })
+        .collect();
+    match parsed {
+        Some(v) if !v.is_empty() => v,
+        _ => {
+            eprintln!(
+                "usage: {usage}\n\
+                 A bench trial's SEED and target RHO: `HIDDEN_LIST=1 hidden-trials N --family \
+                 FAMILY` lists them one per line (`--fails` only the misses)."
+            );
+            std::process::exit(2);
+        }
+    }
+}

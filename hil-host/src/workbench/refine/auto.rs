@@ -55,8 +55,26 @@ pub fn auto(
     opts: &Options,
     max_steps: usize,
 ) -> Result<AutoRun, fit::FitError> {
+    auto_observed(model, p, validation, opts, max_steps, &mut |_| {})
+}
+
+/// [`auto`], calling `on_step` with each step as it is taken: a step refits its leading
+/// candidates in full, which takes seconds to minutes on a long record, so a front end can
+/// show progress.
+pub fn auto_observed(
+    model: &mut Model,
+    p: &Prepared,
+    validation: Option<&Prepared>,
+    opts: &Options,
+    max_steps: usize,
+    on_step: &mut dyn FnMut(&AutoStep),
+) -> Result<AutoRun, fit::FitError> {
+    let mut steps = Steps {
+        list: Vec::new(),
+        on_step,
+    };
     refit_all(model, p)?;
-    let mut steps = vec![AutoStep {
+    steps.push(AutoStep {
         step: 0,
         added: None,
         replaced: None,
@@ -65,7 +83,7 @@ pub fn auto(
         chosen_over: None,
         p_value: None,
         verdict: "start".into(),
-    }];
+    });
     let start_len = model.effects.len();
     let mut seen: Vec<diagnose::Candidate> = Vec::new();
     loop {
@@ -81,11 +99,11 @@ pub fn auto(
             }
         }
         let Some(name) = d.verdict.add.clone() else {
-            if steps.len() <= max_steps {
+            if steps.list.len() <= max_steps {
                 if let Some((m, text)) = delay_probe(model, p, opts)? {
                     *model = m;
                     steps.push(AutoStep {
-                        step: steps.len(),
+                        step: steps.list.len(),
                         added: Some(EffectKind::Delay.name().into()),
                         replaced: None,
                         score: score(model, p),
@@ -100,7 +118,7 @@ pub fn auto(
             let moves = swap_pass(model, p, start_len, &seen)?;
             if moves.is_empty() {
                 return Ok(AutoRun {
-                    steps,
+                    steps: steps.list,
                     last: d,
                     stop: "nothing significant is left".into(),
                 });
@@ -113,7 +131,7 @@ pub fn auto(
                     None => format!("remove {replaced} (lower BIC)"),
                 };
                 steps.push(AutoStep {
-                    step: steps.len(),
+                    step: steps.list.len(),
                     added,
                     replaced: Some(replaced),
                     score: sc,
@@ -125,16 +143,16 @@ pub fn auto(
             }
             let last = diagnose::diagnose(model, p, opts);
             return Ok(AutoRun {
-                steps,
+                steps: steps.list,
                 last,
                 stop: "nothing significant was left before the closing swap pass (a swap \
                        changes the rest of the fit, so the final diagnosis may differ)"
                     .into(),
             });
         };
-        if steps.len() > max_steps {
+        if steps.list.len() > max_steps {
             return Ok(AutoRun {
-                steps,
+                steps: steps.list,
                 last: d,
                 stop: format!("reached --max-steps {max_steps}"),
             });
@@ -144,7 +162,7 @@ pub fn auto(
             // or leaves the model worse by BIC once refitted (the last diagnosis says which
             // was next): stop with the model as it is.
             return Ok(AutoRun {
-                steps,
+                steps: steps.list,
                 last: d,
                 stop: format!(
                     "{name} (and every close candidate) fits only with a parameter outside its \
@@ -154,7 +172,7 @@ pub fn auto(
         };
         *model = fitted;
         steps.push(AutoStep {
-            step: steps.len(),
+            step: steps.list.len(),
             added: Some(c.effect.clone()),
             replaced: None,
             score: score(model, p),
@@ -163,6 +181,19 @@ pub fn auto(
             p_value: c.significant.then_some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
+    }
+}
+
+/// The steps taken so far, each reported to the observer as it is taken.
+struct Steps<'a> {
+    list: Vec<AutoStep>,
+    on_step: &'a mut dyn FnMut(&AutoStep),
+}
+
+impl Steps<'_> {
+    fn push(&mut self, s: AutoStep) {
+        (self.on_step)(&s);
+        self.list.push(s);
     }
 }
 

@@ -25,7 +25,7 @@
 mod auto;
 mod search;
 
-pub use auto::{auto, AutoRun, AutoStep};
+pub use auto::{auto, auto_observed, AutoRun, AutoStep};
 pub use search::best_shape;
 
 use serde::Serialize;
