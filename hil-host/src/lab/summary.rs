@@ -27,6 +27,9 @@ impl Summary {
                 // A figure that does not exist for this run (a step that ends outside its
                 // settling band): say so instead of printing NaN.
                 s.push_str(&format!("  {n:<w$}  {:>12}\n", "not reached"));
+            } else if u.is_empty() && v.fract() == 0.0 && v.abs() < 1e9 {
+                // A count (velocity reversals): no decimals to suggest a measurement.
+                s.push_str(&format!("  {n:<w$}  {v:>6.0}\n"));
             } else {
                 s.push_str(&format!("  {n:<w$}  {v:>12.5}  {u}\n"));
             }
@@ -279,6 +282,23 @@ pub fn fit_viscous_coulomb(w: &[f64], tau: &[f64]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A count prints without decimals, its units digit under the measurements'; a ratio
+    /// (no unit, not whole) and a measurement keep five decimals.
+    #[test]
+    fn table_prints_counts_as_whole_numbers() {
+        let mut s = Summary::default();
+        s.push("velocity reversals", 8.0, "");
+        s.push("achieved / desired", 0.97793, "");
+        s.push("peak output speed", 2.0, "rad/s");
+        let t = s.table();
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines[0], "  velocity reversals       8", "{t}");
+        assert!(lines[1].ends_with("     0.97793  "), "{t}");
+        assert!(lines[2].ends_with("     2.00000  rad/s"), "{t}");
+        let units_digit = |l: &str, from_end: usize| l.chars().count() - from_end;
+        assert_eq!(units_digit(lines[0], 1), units_digit(lines[1], 9));
+    }
 
     #[test]
     fn fits() {
