@@ -10,7 +10,7 @@ use crate::workbench::data::{self, Columns};
 use crate::workbench::diagnose::{self, Options};
 use crate::workbench::metrics;
 use crate::workbench::model::Model;
-use crate::workbench::refine::{self, AutoRun, AutoStep, FitReport, Score};
+use crate::workbench::refine::{self, AutoStep, FitReport, Score};
 use crate::workbench::report::{self, Chart, Series};
 use crate::workbench::residual::{self, Mode, Prepared};
 
@@ -295,7 +295,8 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn auto_text(run: &AutoRun) -> String {
+/// The `--auto` table: one row per step.
+fn auto_text(steps: &[AutoStep]) -> String {
     let label = |st: &AutoStep| match (&st.added, &st.replaced) {
         (Some(a), Some(r)) => format!("{a} (for {r})"),
         (Some(a), None) => match &st.chosen_over {
@@ -306,31 +307,26 @@ fn auto_text(run: &AutoRun) -> String {
         _ => "(start)".into(),
     };
     // The "added" column is as wide as its longest entry (a swap reads "x + y (for z)").
-    let w = run
-        .steps
+    let w = steps
         .iter()
         .map(|st| label(st).chars().count())
         .max()
         .unwrap_or(0)
         .max(13);
-    // One floor for the whole column (the final model's: the floor's encoder part scales
-    // with the fitted inertia, and a per-row floor could rise while the RMS falls).
-    let floor = run
-        .steps
-        .last()
-        .map_or(f64::NAN, |s| s.score.noise_floor_rms);
+    // Each row's multiple is against its own model's floor (`Score::floor_ratio`): the number
+    // `diagnose --model`, `compare` and `fit` print for that model on this record.
     let mut s = format!(
         "{:>4}  {:<w$} {:>9} {:>12} {:>7} {:>10} {:>12} {:>10}\n",
         "step", "added", "fit %", "RMS", "×floor", "Holm p", "val RMS", "val fit %"
     );
-    for st in &run.steps {
+    for st in steps {
         s.push_str(&format!(
             "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>7.2} {:>10} {:>12} {:>10}\n",
             st.step,
             label(st),
             st.score.fit_percent,
             st.score.rms,
-            st.score.rms / floor,
+            st.score.floor_ratio(),
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
             st.validation
                 .map(|v| format!("{:.4e}", v.rms))
@@ -400,7 +396,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     if let Some(f) = &a.save_model {
         model.save(f)?;
     }
-    let table = auto_text(&run);
+    let table = auto_text(&run.steps);
     let mut report_path = None;
     if let Some(dir) = &a.out {
         let mut series = vec![Series {
@@ -515,7 +511,7 @@ fn fit_text(r: &FitReport) -> String {
             a.fit_percent,
             b.rms,
             a.rms,
-            b.rms / a.noise_floor_rms,
+            b.floor_ratio(),
             a.floor_ratio(),
             b.relative_error_percent,
             a.relative_error_percent
@@ -730,6 +726,36 @@ mod tests {
             validation: None,
         };
         assert!(est_only.text(&r).is_some());
+    }
+
+    /// Each `--auto` row's multiple is against its own model's floor — the number `diagnose`
+    /// prints for that model — even where the floor moved more than the RMS.
+    #[test]
+    fn auto_rows_use_their_own_floor() {
+        let step = |k: usize, rms: f64, floor: f64| AutoStep {
+            step: k,
+            added: (k > 0).then(|| "coulomb".to_string()),
+            replaced: None,
+            score: Score {
+                fit_percent: 90.0,
+                rms,
+                relative_error_percent: rms,
+                noise_floor_rms: floor,
+            },
+            validation: None,
+            chosen_over: None,
+            p_value: None,
+            verdict: String::new(),
+        };
+        let t = auto_text(&[step(0, 4.0, 2.0), step(1, 3.0, 1.0)]);
+        let ratio = |row: usize| -> f64 {
+            let line = t.lines().nth(row + 1).expect("row");
+            line.split_whitespace()
+                .nth(4)
+                .and_then(|x| x.parse().ok())
+                .expect("×floor")
+        };
+        assert_eq!((ratio(0), ratio(1)), (2.0, 3.0), "{t}");
     }
 
     /// A refit that lowers the estimation error but raises the validation error says so;
