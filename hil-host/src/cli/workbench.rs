@@ -391,8 +391,10 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 s.step + 1
             ));
         },
-    )?;
+    );
+    // Cleared before an error is printed too, so no spinner line is left above it.
     spinner.finish_and_clear();
+    let run = run?;
     if let Some(f) = &a.save_model {
         model.save(f)?;
     }
