@@ -277,15 +277,33 @@ pub(super) fn choose(
             .take(2),
     );
     let current = bic(model, p);
+    // Each candidate's full refit is independent of the others' (and deterministic), so they
+    // run on their own threads; the results are then taken in pool order, exactly as one
+    // after the other.
+    let refits: Vec<Option<Result<Model, fit::FitError>>> = std::thread::scope(|sc| {
+        let hs: Vec<_> = pool
+            .iter()
+            .map(|c| {
+                sc.spawn(move || {
+                    let mut m = model.clone();
+                    m.add(c.kind?, c.shape.clone());
+                    if !coherent(&m) {
+                        return None;
+                    }
+                    Some(refit_all(&mut m, p).map(|()| m))
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
     let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
-    for c in pool {
-        let kind = c.kind.expect("kind");
-        let mut m = model.clone();
-        m.add(kind, c.shape.clone());
-        if !coherent(&m) {
+    for (c, refit) in pool.into_iter().zip(refits) {
+        let Some(refit) = refit else {
             continue;
-        }
-        refit_all(&mut m, p)?;
+        };
+        let m = refit?;
         if m.physical().is_err() {
             // e.g. a quantiser gain fitted above 1: not an explanation the simulator can hold
             continue;
