@@ -387,14 +387,15 @@ fn swap_pass(
                 best = Some((b, m, added, replaced));
             }
         };
+        // The moves to try, in order: each added effect removed, or replaced by one or two
+        // fresh candidates that spend no more parameters.
+        let mut trials: Vec<(Model, Option<String>, String)> = Vec::new();
         for i in start_len..model.effects.len() {
             let old = &model.effects[i];
             let (old_kind, old_spent) = (old.kind, spent_params(old.kind, old.params.len()));
             let mut base = model.clone();
             base.remove(i);
-            let mut m = base.clone();
-            refit_all(&mut m, p)?;
-            consider(m, None, old_kind.name().into());
+            trials.push((base.clone(), None, old_kind.name().into()));
             let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
                 .iter()
                 .filter_map(|c| c.kind.map(|k| (c, k)))
@@ -407,8 +408,7 @@ fn swap_pass(
                 }
                 let mut m = base.clone();
                 m.add(*ka, a.shape.clone());
-                refit_all(&mut m, p)?;
-                consider(m, Some(a.effect.clone()), old_kind.name().into());
+                trials.push((m, Some(a.effect.clone()), old_kind.name().into()));
                 for (b, kb) in &fresh {
                     if kb <= ka || !b.significant || sa + spent_params(*kb, b.df) > old_spent {
                         continue;
@@ -416,14 +416,18 @@ fn swap_pass(
                     let mut m = base.clone();
                     m.add(*ka, a.shape.clone());
                     m.add(*kb, b.shape.clone());
-                    refit_all(&mut m, p)?;
-                    consider(
+                    trials.push((
                         m,
                         Some(format!("{} + {}", a.effect, b.effect)),
                         old_kind.name().into(),
-                    );
+                    ));
                 }
             }
+        }
+        // Their full refits are independent and deterministic: each on its own thread, the
+        // results considered in the order above (the same choice as one after the other).
+        for (refit, (_, added, replaced)) in refit_each(&trials, p).into_iter().zip(trials) {
+            consider(refit?, added, replaced);
         }
         match best {
             Some((_, m, added, replaced)) => {
@@ -439,6 +443,27 @@ fn swap_pass(
         }
     }
     Ok(moves)
+}
+
+/// [`refit_all`] of each model in `trials` (the first field), one thread each, in order.
+fn refit_each<T>(trials: &[(Model, T, String)], p: &Prepared) -> Vec<Result<Model, fit::FitError>>
+where
+    T: Sync,
+{
+    std::thread::scope(|sc| {
+        let hs: Vec<_> = trials
+            .iter()
+            .map(|(m, _, _)| {
+                sc.spawn(move || {
+                    let mut m = m.clone();
+                    refit_all(&mut m, p).map(|()| m)
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
 }
 
 /// The delay probe of `--auto`, once the diagnosis finds nothing more. The diagnosis tests a
