@@ -8,7 +8,7 @@ use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
 use super::super::model::Model;
 use super::super::residual::{self, Prepared};
-use super::{refit_all, score, Score};
+use super::{each_on_a_thread, refit_all, score, Score};
 
 /// One step of `diagnose --auto`.
 #[derive(Debug, Clone, Serialize)]
@@ -280,23 +280,13 @@ pub(super) fn choose(
     // Each candidate's full refit is independent of the others' (and deterministic), so they
     // run on their own threads; the results are then taken in pool order, exactly as one
     // after the other.
-    let refits: Vec<Option<Result<Model, fit::FitError>>> = std::thread::scope(|sc| {
-        let hs: Vec<_> = pool
-            .iter()
-            .map(|c| {
-                sc.spawn(move || {
-                    let mut m = model.clone();
-                    m.add(c.kind?, c.shape.clone());
-                    if !coherent(&m) {
-                        return None;
-                    }
-                    Some(refit_all(&mut m, p).map(|()| m))
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
+    let refits = each_on_a_thread(&pool, |c| {
+        let mut m = model.clone();
+        m.add(c.kind?, c.shape.clone());
+        if !coherent(&m) {
+            return None;
+        }
+        Some(refit_all(&mut m, p).map(|()| m))
     });
     let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
     for (c, refit) in pool.into_iter().zip(refits) {
@@ -426,7 +416,11 @@ fn swap_pass(
         }
         // Their full refits are independent and deterministic: each on its own thread, the
         // results considered in the order above (the same choice as one after the other).
-        for (refit, (_, added, replaced)) in refit_each(&trials, p).into_iter().zip(trials) {
+        let refits = each_on_a_thread(&trials, |(m, _, _)| {
+            let mut m = m.clone();
+            refit_all(&mut m, p).map(|()| m)
+        });
+        for (refit, (_, added, replaced)) in refits.into_iter().zip(trials) {
             consider(refit?, added, replaced);
         }
         match best {
@@ -443,27 +437,6 @@ fn swap_pass(
         }
     }
     Ok(moves)
-}
-
-/// [`refit_all`] of each model in `trials` (the first field), one thread each, in order.
-fn refit_each<T>(trials: &[(Model, T, String)], p: &Prepared) -> Vec<Result<Model, fit::FitError>>
-where
-    T: Sync,
-{
-    std::thread::scope(|sc| {
-        let hs: Vec<_> = trials
-            .iter()
-            .map(|(m, _, _)| {
-                sc.spawn(move || {
-                    let mut m = m.clone();
-                    refit_all(&mut m, p).map(|()| m)
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
-    })
 }
 
 /// The delay probe of `--auto`, once the diagnosis finds nothing more. The diagnosis tests a

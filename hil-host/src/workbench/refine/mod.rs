@@ -188,17 +188,21 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
 /// order, not which finishes first, decides ties in [`refit_all`]).
 #[doc(hidden)]
 pub fn refit_each_start(model: &Model, p: &Prepared) -> Vec<(Model, Result<(), fit::FitError>)> {
+    each_on_a_thread(&StickStart::all(p), |&start| {
+        let mut m = model.clone();
+        let r = refit_from(&mut m, p, start);
+        (m, r)
+    })
+}
+
+/// `f` of each item, one thread each, the results in the items' order — the order, not which
+/// thread finishes first, decides whatever the caller picks among them, so a parallel run
+/// gives what a sequential one would. (The refits this runs are long and independent; a
+/// panic in one is passed on.)
+fn each_on_a_thread<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let f = &f;
     std::thread::scope(|sc| {
-        let hs: Vec<_> = StickStart::all(p)
-            .into_iter()
-            .map(|start| {
-                let mut m = model.clone();
-                sc.spawn(move || {
-                    let r = refit_from(&mut m, p, start);
-                    (m, r)
-                })
-            })
-            .collect();
+        let hs: Vec<_> = items.iter().map(|x| sc.spawn(move || f(x))).collect();
         hs.into_iter()
             .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
