@@ -254,15 +254,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     };
     let charts = report::charts(&res, &m, &rec_units);
     let params = refine::param_rows(&model);
-    let ptext: String = params
-        .iter()
-        .map(|r| {
-            format!(
-                "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
-                r.owner, r.name, r.value, r.sigma
-            )
-        })
-        .collect();
+    let ptext = param_text(&params);
     let html = report::write(
         &a.out,
         &format!("compare: {} vs {}", model.name, a.data.file.display()),
@@ -293,6 +285,18 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         println!("report: {}", html.display());
     }
     Ok(())
+}
+
+/// A model's parameters ± 1σ, one per line, for the HTML reports.
+fn param_text(rows: &[refine::ParamRow]) -> String {
+    rows.iter()
+        .map(|r| {
+            format!(
+                "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
+                r.owner, r.name, r.value, r.sigma
+            )
+        })
+        .collect()
 }
 
 /// The `--auto` table: one row per step.
@@ -428,15 +432,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             y_label: "RMS".into(),
             series,
         };
-        let ptext: String = refine::param_rows(&model)
-            .iter()
-            .map(|r| {
-                format!(
-                    "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
-                    r.owner, r.name, r.value, r.sigma
-                )
-            })
-            .collect();
+        let ptext = param_text(&refine::param_rows(&model));
         let res = residual::equation_error(&model, &p);
         let m = metrics::compute(&res, None);
         let mut charts = vec![chart];

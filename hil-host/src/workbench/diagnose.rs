@@ -43,8 +43,8 @@ use serde::Serialize;
 use sim_plant::effects::{compliance, resolved, shape_search, EffectKind, Shape, Trajectory};
 
 use super::fit::{self, gram, gram_inverse};
-use super::metrics;
 use super::model::Model;
+use super::refine::Score;
 use super::residual::{self, Prepared};
 use super::stats;
 
@@ -510,10 +510,11 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     // inertia — so that it is the score `compare`, `fit` and `--auto` print for it.
     let own = residual::equation_error(model, p);
     let own_j = model.inertia.value;
+    let score = Score::of(&own, p.equation_floor(own_j));
     let baseline = Baseline {
-        fit_percent: metrics::fit_percent(&own.measured, &own.predicted),
-        rms: own.rms(),
-        noise_floor_rms: p.equation_floor(own_j),
+        fit_percent: score.fit_percent,
+        rms: score.rms,
+        noise_floor_rms: score.noise_floor_rms,
         input_noise_rms: p.noise_floor,
         encoder_noise_rms: p.encoder_floor(own_j),
         ljung_box_p: stats::ljung_box(&own.residual, 20).1,

@@ -53,6 +53,19 @@ pub struct Score {
 }
 
 impl Score {
+    /// The score of a residual `r` against the floor `noise_floor_rms` — the one formula for
+    /// what `compare`, `diagnose`'s baseline, `fit` and `--auto` print for a model.
+    pub fn of(r: &residual::Residual, noise_floor_rms: f64) -> Score {
+        let ss: f64 = r.residual.iter().map(|v| v * v).sum();
+        let uu: f64 = r.measured.iter().map(|v| v * v).sum();
+        Score {
+            fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
+            rms: r.rms(),
+            relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
+            noise_floor_rms,
+        }
+    }
+
     /// RMS over the noise floor (1 = nothing left but noise).
     pub fn floor_ratio(&self) -> f64 {
         self.rms / self.noise_floor_rms
@@ -61,16 +74,10 @@ impl Score {
 
 /// Equation-error score of a model on prepared data (no refit).
 pub fn score(model: &Model, p: &Prepared) -> Score {
-    let r = residual::equation_error(model, p);
-    let n = r.residual.len() as f64;
-    let ss: f64 = r.residual.iter().map(|v| v * v).sum();
-    let uu: f64 = r.measured.iter().map(|v| v * v).sum();
-    Score {
-        fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
-        rms: (ss / n).sqrt(),
-        relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
-        noise_floor_rms: p.equation_floor(model.inertia.value),
-    }
+    Score::of(
+        &residual::equation_error(model, p),
+        p.equation_floor(model.inertia.value),
+    )
 }
 
 /// One fitted parameter.
