@@ -72,6 +72,10 @@ pub struct DataArgs {
     /// Gain from the input column to force/torque (e.g. EMPS gtau = 35.15065188248547 N/V).
     #[arg(long, default_value_t = 1.0)]
     pub input_gain: f64,
+    /// A column the input is multiplied by, row by row (e.g. the measured supply voltage when
+    /// --input is a PWM duty in −1…1: duty × volts is the applied voltage).
+    #[arg(long)]
+    pub input_times: Option<String>,
     /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -88,11 +92,16 @@ impl DataArgs {
             load_output: self.load_output.clone(),
             time: self.time.clone(),
             input_gain: self.input_gain,
+            input_times: self.input_times.clone(),
             load_gain: self.load_gain,
         }
     }
     fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
         let rec = data::load(file, &self.columns())?;
+        // On stderr: `--json` keeps exactly one object on stdout.
+        if let Some(r) = &rec.resampled {
+            eprintln!("{}", r.note(file));
+        }
         if let Some(fc) = self.cutoff {
             let nyquist = 0.5 / rec.dt;
             if !(fc.is_finite() && fc > 0.0 && fc < nyquist) {

@@ -157,6 +157,9 @@ pub struct Columns {
     /// Gain applied to the input column (e.g. the drive gain `gtau` in N/V), so the model sees
     /// a force/torque.
     pub input_gain: f64,
+    /// A second column the input is multiplied by, row by row, before the gain: the measured
+    /// supply voltage for a drive that logs its PWM duty (duty × volts = the applied voltage).
+    pub input_times: Option<String>,
     /// Gain from the load column to the output column's axis: the gear ratio N when the load
     /// encoder sits at the output and the output column is the motor shaft. The deflection
     /// motor − load is only meaningful with both on one axis.
@@ -172,6 +175,7 @@ impl Columns {
             load_output: None,
             time: "time_s".into(),
             input_gain: 1.0,
+            input_times: None,
             load_gain: 1.0,
         }
     }
@@ -196,6 +200,61 @@ pub struct Recording {
     pub units: (String, String),
     /// Column names, for reports.
     pub columns: Columns,
+    /// How the record's irregular clock was made uniform, if it was (see [`Resampled`]).
+    pub resampled: Option<Resampled>,
+}
+
+/// A record whose sample intervals vary (a host polling a drive: the XL330 servo logs in
+/// `../shared/data/real` step 3.2–7.1 ms around a 5.3 ms median) is put on a uniform clock
+/// before anything differentiates it: the differentiator and every fingerprint assume one
+/// sample period, and a 30 % longer interval read as the nominal one is a 30 % error in that
+/// sample's velocity. Every column is interpolated linearly onto `t0 + k·dt`, k = 0 … N − 1,
+/// with the record's own N and mean interval dt, so no samples are invented or dropped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Resampled {
+    /// Shortest interval in the file (s).
+    pub min_step: f64,
+    /// Longest interval in the file (s).
+    pub max_step: f64,
+    /// Median interval in the file (s).
+    pub median_step: f64,
+    /// The uniform interval now (s): the mean of the file's.
+    pub dt: f64,
+}
+
+impl Resampled {
+    /// Largest relative departure of an interval from the mean that still counts as uniform
+    /// (a clock's rounding; a 1 kHz record written with 9 digits departs by < 10⁻⁵).
+    pub const TOLERANCE: f64 = 1e-3;
+
+    /// The one-line note the commands print.
+    pub fn note(&self, file: &Path) -> String {
+        format!(
+            "note: {}: the sample interval varies ({:.3}–{:.3} ms, median {:.3} ms); every \
+             column was interpolated linearly onto a uniform {:.4} ms clock",
+            file.display(),
+            1e3 * self.min_step,
+            1e3 * self.max_step,
+            1e3 * self.median_step,
+            1e3 * self.dt
+        )
+    }
+}
+
+/// `x`, sampled at the increasing times `t`, linearly interpolated at `t[0] + k·dt` for
+/// k = 0 … len − 1 (the last point is clamped onto the last sample against rounding).
+fn interpolate_uniform(t: &[f64], x: &[f64], dt: f64) -> Vec<f64> {
+    let mut j = 0;
+    (0..t.len())
+        .map(|k| {
+            let tk = (t[0] + k as f64 * dt).min(t[t.len() - 1]);
+            while j + 2 < t.len() && t[j + 1] <= tk {
+                j += 1;
+            }
+            let w = ((tk - t[j]) / (t[j + 1] - t[j])).clamp(0.0, 1.0);
+            x[j] + w * (x[j + 1] - x[j])
+        })
+        .collect()
 }
 
 impl Recording {
@@ -210,9 +269,17 @@ impl Recording {
 }
 
 /// The input's unit as recordings and reports label it: the column's suffix unit, times
-/// `--input-gain` when there is one (`V×35.15…` for EMPS).
+/// `--input-gain` when there is one (`V×35.15…` for EMPS). With `--input-times` the unit is
+/// the product's (a unitless duty times a `_V` column reads `V`).
 pub fn input_unit(cols: &Columns) -> String {
-    let u = unit_of(&cols.input).0;
+    let u = match cols.input_times.as_deref().map(|c| unit_of(c).0) {
+        Some(t) => match (unit_of(&cols.input).0, t) {
+            ("", t) => t.to_string(),
+            (u, "") => u.to_string(),
+            (u, t) => format!("{u}·{t}"),
+        },
+        None => unit_of(&cols.input).0.to_string(),
+    };
     if cols.input_gain != 1.0 {
         format!("{u}×{}", cols.input_gain)
     } else {
@@ -232,6 +299,10 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     if let Some(c) = &cols.load_output {
         names.push(c);
     }
+    if let Some(c) = &cols.input_times {
+        names.push(c);
+    }
+    let times_at = names.len() - 1;
     let (raw, lines) = read_numeric(path, &names)?;
     let (_, ts) = unit_of(&cols.time);
     let (_, us) = unit_of(&cols.input);
@@ -253,7 +324,13 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
             });
         }
     }
-    let input = scale(1, us * cols.input_gain);
+    let mut input = scale(1, us * cols.input_gain);
+    if let Some(c) = &cols.input_times {
+        let f = unit_of(c).1;
+        for (u, m) in input.iter_mut().zip(scale(times_at, f)) {
+            *u *= m;
+        }
+    }
     let output = scale(2, ys);
     let load_out = cols
         .load_output
@@ -268,8 +345,8 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     }
     // Uniform sampling: the differentiator and every fingerprint assume one sample period,
     // so a gap (dropped rows) or a jump in the clock would silently bend the fit. Jitter is
-    // tolerated (the XL330 servo records in ../shared/data/real reach 1.74× their median
-    // interval); a gap of two or more samples is not.
+    // interpolated away below (the XL330 servo records in ../shared/data/real reach 1.74×
+    // their median interval; see `Resampled`); a gap of two or more samples is not.
     let mut gaps: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
     gaps.sort_by(|a, b| a.total_cmp(b));
     let median = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0);
@@ -295,6 +372,25 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
     }
     let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
+    let (min_step, max_step) = (gaps[0], gaps[gaps.len() - 1]);
+    let resampled =
+        ((max_step - dt).max(dt - min_step) > Resampled::TOLERANCE * dt).then_some(Resampled {
+            min_step,
+            max_step,
+            median_step: median,
+            dt,
+        });
+    let (time, input, output, load_out) = if resampled.is_some() {
+        let on_clock = |x: &[f64]| interpolate_uniform(&time, x, dt);
+        (
+            (0..time.len()).map(|k| time[0] + k as f64 * dt).collect(),
+            on_clock(&input),
+            on_clock(&output),
+            load_out.as_deref().map(on_clock),
+        )
+    } else {
+        (time, input, output, load_out)
+    };
     Ok(Recording {
         path: file,
         time,
@@ -304,6 +400,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         dt,
         units: (input_unit(cols), yu.to_string()),
         columns: cols.clone(),
+        resampled,
     })
 }
 
@@ -413,5 +510,69 @@ mod tests {
             );
         }
         assert!(rec.input.iter().zip(&rec.time).all(|(&u, &t)| u == 0.5 + t));
+    }
+
+    /// A host-polled clock (intervals 4–6.5 ms) is put on a uniform one: the same number of
+    /// samples at the mean interval, and a signal linear in time is reproduced exactly at the
+    /// new instants (linear interpolation is exact for it). A duty column times a volts
+    /// column is the input, in volts.
+    #[test]
+    fn irregular_clock_is_resampled_and_input_times_multiplies() {
+        let dir = std::env::temp_dir().join(format!("jointlab-jitter-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join("polled.csv");
+        let mut csv = String::from("t_s,duty,supply_V,q_rad\n");
+        let mut t = 0.0;
+        let mut times = Vec::new();
+        for k in 0..80 {
+            times.push(t);
+            let volts = 7.0 + 0.01 * k as f64;
+            csv += &format!("{t},{},{volts},{}\n", 0.5 - 0.001 * k as f64, 2.0 * t + 1.0);
+            t += [4e-3, 6.5e-3, 5e-3, 5.5e-3][k % 4];
+        }
+        std::fs::write(&path, csv).expect("write csv");
+        let cols = Columns {
+            time: "t_s".into(),
+            input_times: Some("supply_V".into()),
+            ..Columns::new("duty", "q_rad")
+        };
+        let rec = load(&path, &cols).expect("load");
+        std::fs::remove_dir_all(&dir).ok();
+        let r = rec.resampled.expect("an irregular clock is resampled");
+        assert!((r.min_step - 4e-3).abs() < 1e-12 && (r.max_step - 6.5e-3).abs() < 1e-12);
+        let dt = (times[79] - times[0]) / 79.0;
+        assert!((r.dt - dt).abs() < 1e-15 && (rec.dt - dt).abs() < 1e-15);
+        assert_eq!(rec.len(), 80);
+        for (k, (&tk, &q)) in rec.time.iter().zip(&rec.output).enumerate() {
+            assert!((tk - k as f64 * dt).abs() < 1e-12, "sample {k}: t = {tk}");
+            assert!((q - (2.0 * tk + 1.0)).abs() < 1e-12, "sample {k}: q = {q}");
+        }
+        // At the first and last instants (which stay put) the input is duty × volts.
+        assert!((rec.input[0] - 0.5 * 7.0).abs() < 1e-12);
+        assert!((rec.input[79] - (0.5 - 0.079) * 7.79).abs() < 1e-12);
+        assert_eq!(rec.units.0, "V");
+        assert!(
+            r.note(&path).contains("4.000–6.500 ms"),
+            "{}",
+            r.note(&path)
+        );
+    }
+
+    /// A clock that is uniform up to its digits is left alone (no resampling, no note).
+    #[test]
+    fn uniform_clock_is_not_resampled() {
+        let dir = std::env::temp_dir().join(format!("jointlab-uniform-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join("uniform.csv");
+        let mut csv = String::from("time_s,torque_Nm,q_rad\n");
+        for k in 0..60 {
+            let t = k as f64 * 1e-3;
+            csv += &format!("{t:.9},{},{}\n", (k % 7) as f64, (k * k) as f64 * 1e-4);
+        }
+        std::fs::write(&path, csv).expect("write csv");
+        let rec = load(&path, &Columns::new("torque_Nm", "q_rad")).expect("load");
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!(rec.resampled, None);
+        assert_eq!(rec.output[59], 59.0 * 59.0 * 1e-4);
     }
 }

@@ -408,6 +408,7 @@ fn record_with_load(
         dt: DT,
         units: ("N·m".into(), "rad".into()),
         columns: Columns::new("torque_Nm", "q_rad"),
+        resampled: None,
     };
     (rec, [m.load_position, m.motor_true])
 }

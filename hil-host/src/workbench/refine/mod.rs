@@ -365,6 +365,7 @@ mod tests {
             dt,
             units: ("N·m".into(), "rad".into()),
             columns: Columns::new("torque_Nm", "q_rad"),
+            resampled: None,
         };
         Prepared::new(&rec, Some(40.0))
     }

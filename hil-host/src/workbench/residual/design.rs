@@ -520,6 +520,7 @@ mod tests {
             dt: 1e-3,
             units: ("N·m".into(), "rad".into()),
             columns: crate::workbench::data::Columns::new("u", "q"),
+            resampled: None,
         };
         let p = Prepared::new(&rec, Some(40.0));
         let m = Model::baseline();

@@ -342,6 +342,7 @@ mod tests {
             dt,
             units: ("N·m".into(), "rad".into()),
             columns: crate::workbench::data::Columns::new("u_Nm", "q_rad"),
+            resampled: None,
         };
         let p = Prepared::new(&rec(Some(x.clone())), Some(40.0));
         assert_eq!(p.load_position.len(), p.position.len());
