@@ -97,10 +97,16 @@ impl DataArgs {
         }
     }
     fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
+        self.prepared_noted(file).map(|(p, _)| p)
+    }
+    /// [`DataArgs::prepared`] and the note on how the record was resampled, if it was (for
+    /// a report; it is printed on stderr either way).
+    fn prepared_noted(&self, file: &Path) -> anyhow::Result<(Prepared, Option<String>)> {
         let rec = data::load(file, &self.columns())?;
         // On stderr: `--json` keeps exactly one object on stdout.
-        if let Some(r) = &rec.resampled {
-            eprintln!("{}", r.note(file));
+        let note = rec.resampled.map(|r| r.note(file));
+        if let Some(n) = &note {
+            eprintln!("{n}");
         }
         if let Some(fc) = self.cutoff {
             let nyquist = 0.5 / rec.dt;
@@ -112,7 +118,7 @@ impl DataArgs {
                 );
             }
         }
-        Ok(Prepared::new(&rec, self.cutoff))
+        Ok((Prepared::new(&rec, self.cutoff), note))
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
@@ -233,7 +239,7 @@ pub struct FitArgs {
 
 /// Run `compare`.
 pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
-    let p = a.data.prepared(&a.data.file)?;
+    let (p, resampled) = a.data.prepared_noted(&a.data.file)?;
     let model = match (&a.data.model, a.refit) {
         (Some(f), false) => Model::load(f)?,
         _ => a.data.model(&p)?,
@@ -268,7 +274,13 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         &a.out,
         &format!("compare: {} vs {}", model.name, a.data.file.display()),
         &[
-            ("metrics".into(), m.to_text()),
+            (
+                "metrics".into(),
+                match &resampled {
+                    Some(n) => format!("{n}\n{}", m.to_text()),
+                    None => m.to_text(),
+                },
+            ),
             ("model parameters".into(), ptext.clone()),
         ],
         &charts,
@@ -278,7 +290,12 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::json!({ "metrics": m, "params": params, "report": html })
+            serde_json::json!({
+                "metrics": m,
+                "params": params,
+                "report": html,
+                "resampled": resampled,
+            })
         );
     } else {
         println!("model: {}\n{}", model.name, ptext);
@@ -484,6 +501,9 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         print!("{table}");
         println!("stopped: {}", run.stop);
         println!("final diagnosis: {}", run.last.verdict.text);
+        for n in &run.last.notes {
+            println!("note: {n}");
+        }
         if let Some(r) = report_path {
             println!("report: {}", r.display());
         }

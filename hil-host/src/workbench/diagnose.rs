@@ -729,6 +729,9 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     if let Some(note) = encoder_limited(&baseline, verdict.add.as_deref()) {
         notes.push(note);
     }
+    if let Some(note) = unexplained(&baseline, verdict.add.as_deref()) {
+        notes.push(note);
+    }
     Diagnosis {
         residual_mode: residual::Mode::Equation.name().into(),
         baseline,
@@ -760,6 +763,33 @@ fn encoder_limited(b: &Baseline, verdict: Option<&str>) -> Option<String> {
              encoder, a lower --cutoff or a dithered excitation",
             b.rms / b.noise_floor_rms,
             100.0 * (b.encoder_noise_rms / b.noise_floor_rms).powi(2)
+        )
+    })
+}
+
+/// RMS of a residual, in units of its noise floor, above which "no significant missing
+/// effect" is not the end of the story (see [`unexplained`]).
+pub const UNEXPLAINED: f64 = 1.5;
+
+/// A note when no candidate is significant but the residual is well above its noise floor:
+/// the verdict then means "nothing in the library", not "nothing left". On the XL330 servo
+/// logs in ../shared/data/real, after gravity and Coulomb, no candidate is significant while
+/// the residual is 3.2× its floor — what is left (load-dependent gear friction, the drive's
+/// current limit) has no fingerprint in the library.
+fn unexplained(b: &Baseline, verdict: Option<&str>) -> Option<String> {
+    let left = b.rms / b.noise_floor_rms;
+    (verdict.is_none() && left > UNEXPLAINED).then(|| {
+        format!(
+            "no effect in the library explains a significant share of what is left, yet the \
+             residual is {left:.2}× its noise floor{}: the model misses something the library \
+             has no fingerprint for (load-dependent friction, a drive's current limit or \
+             saturation, a further mode, …) — `compare` shows where it lives (by time, \
+             velocity, position phase and load level)",
+            if b.ljung_box_p < 0.01 {
+                format!(" and not white (Ljung–Box p {:.1e})", b.ljung_box_p)
+            } else {
+                String::new()
+            }
         )
     })
 }
@@ -822,5 +852,37 @@ impl Diagnosis {
         }
         let _ = writeln!(s, "verdict: {}", self.verdict.text);
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn baseline(rms: f64, ljung_box_p: f64) -> Baseline {
+        Baseline {
+            fit_percent: 80.0,
+            rms,
+            noise_floor_rms: 1.0,
+            input_noise_rms: 0.6,
+            encoder_noise_rms: 0.8,
+            ljung_box_p,
+            model: "test".into(),
+        }
+    }
+
+    /// "No significant missing effect" on a residual well above its floor says that the
+    /// library ran out, not that nothing is left; at the floor, or with a verdict, it is quiet.
+    #[test]
+    fn a_residual_above_its_floor_with_no_verdict_gets_a_note() {
+        let note = unexplained(&baseline(3.24, 0.0), None).expect("3.24× the floor, no verdict");
+        assert!(
+            note.contains("3.24× its noise floor") && note.contains("not white"),
+            "{note}"
+        );
+        let white = unexplained(&baseline(2.0, 0.5), None).expect("2× the floor");
+        assert!(!white.contains("not white"), "{white}");
+        assert_eq!(unexplained(&baseline(1.1, 0.0), None), None);
+        assert_eq!(unexplained(&baseline(3.24, 0.0), Some("coulomb")), None);
     }
 }
