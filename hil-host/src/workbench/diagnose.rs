@@ -768,7 +768,7 @@ fn encoder_limited(b: &Baseline, verdict: Option<&str>) -> Option<String> {
 }
 
 /// RMS of a residual, in units of its noise floor, above which "no significant missing
-/// effect" is not the end of the story (see [`unexplained`]).
+/// effect" is not the end of the story (`unexplained` then adds a note).
 pub const UNEXPLAINED: f64 = 1.5;
 
 /// A note when no candidate is significant but the residual is well above its noise floor:
