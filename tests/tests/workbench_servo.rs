@@ -167,8 +167,9 @@ fn pendulum_inertia_over_gravity_is_the_physical_one() {
     }
 }
 
-/// The README's commands for this machine run as written (`--input-times`, the resampling
-/// note, `--save-model`), and the model `fit` writes carries the gravity it fitted.
+/// The README's four commands for this machine run as written (`--input-times`, the
+/// resampled clock, `--save-model`, `--model`, `--auto`), and the model `fit` writes carries
+/// the gravity and the Coulomb level it fitted.
 #[test]
 fn readme_commands_run() {
     use clap::Parser;
@@ -178,7 +179,8 @@ fn readme_commands_run() {
     std::fs::create_dir_all(&out).unwrap();
     let est = dir.join("sin_time_square_kp200.csv");
     let val = dir.join("sin_sin_kp200.csv");
-    let xl1 = out.join("xl1.toml");
+    let (xl1, xl2) = (out.join("xl1.toml"), out.join("xl2.toml"));
+    let path = |p: &Path| p.to_str().unwrap().to_string();
     let b = [
         "--time",
         "t_s",
@@ -199,24 +201,33 @@ fn readme_commands_run() {
             .collect();
         run(Cli::parse_from(args)).unwrap_or_else(|e| panic!("{head:?}: {e:#}"));
     };
-    cmd(&["diagnose", est.to_str().unwrap()], &["--json"]);
+    let (est, val, xl1s, xl2s) = (path(&est), path(&val), path(&xl1), path(&xl2));
+    cmd(&["diagnose", &est], &["--json"]);
     cmd(
-        &["fit", est.to_str().unwrap()],
+        &["fit", &est],
         &[
             "--add",
             "gravity",
             "--validate",
-            val.to_str().unwrap(),
+            &val,
             "--save-model",
-            xl1.to_str().unwrap(),
+            &xl1s,
         ],
     );
-    let m = Model::load(&xl1).unwrap();
+    cmd(
+        &["fit", &est],
+        &["--model", &xl1s, "--add", "coulomb", "--save-model", &xl2s],
+    );
+    cmd(&["diagnose", &est], &["--auto", "--validate", &val]);
+    let rows = refine::param_rows(&Model::load(&xl2).unwrap());
     std::fs::remove_dir_all(&out).ok();
-    let g = refine::param_rows(&m)
-        .into_iter()
-        .find(|p| p.owner == "gravity" && p.name == "sin")
-        .map(|p| p.value)
-        .expect("the written model has gravity");
+    let value = |owner: &str, name: &str| {
+        rows.iter()
+            .find(|p| p.owner == owner && p.name == name)
+            .map(|p| p.value)
+            .unwrap_or_else(|| panic!("the written model has no {owner}.{name}"))
+    };
+    let (g, c) = (value("gravity", "sin"), value("coulomb", "torque"));
     assert!((3.5..5.5).contains(&g), "gravity amplitude {g} V");
+    assert!(c > 0.0 && c < 0.3 * g, "Coulomb level {c} V");
 }

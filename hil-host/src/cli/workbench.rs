@@ -6,7 +6,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use sim_plant::effects::EffectKind;
 
-use crate::workbench::data::{self, Columns};
+use crate::workbench::data::{self, Columns, Resampled};
 use crate::workbench::diagnose::{self, Options};
 use crate::workbench::metrics;
 use crate::workbench::model::Model;
@@ -97,16 +97,15 @@ impl DataArgs {
         }
     }
     fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
-        self.prepared_noted(file).map(|(p, _)| p)
+        self.prepared_with_note(file).map(|(p, _)| p)
     }
-    /// [`DataArgs::prepared`] and the note on how the record was resampled, if it was (for
-    /// a report; it is printed on stderr either way).
-    fn prepared_noted(&self, file: &Path) -> anyhow::Result<(Prepared, Option<String>)> {
+    /// [`DataArgs::prepared`] and how the record was resampled, if it was (for a report; the
+    /// note is printed on stderr either way).
+    fn prepared_with_note(&self, file: &Path) -> anyhow::Result<(Prepared, Option<Resampled>)> {
         let rec = data::load(file, &self.columns())?;
         // On stderr: `--json` keeps exactly one object on stdout.
-        let note = rec.resampled.map(|r| r.note(file));
-        if let Some(n) = &note {
-            eprintln!("{n}");
+        if let Some(r) = &rec.resampled {
+            eprintln!("{}", r.note(file));
         }
         if let Some(fc) = self.cutoff {
             let nyquist = 0.5 / rec.dt;
@@ -118,7 +117,7 @@ impl DataArgs {
                 );
             }
         }
-        Ok((Prepared::new(&rec, self.cutoff), note))
+        Ok((Prepared::new(&rec, self.cutoff), rec.resampled))
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
@@ -239,7 +238,7 @@ pub struct FitArgs {
 
 /// Run `compare`.
 pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
-    let (p, resampled) = a.data.prepared_noted(&a.data.file)?;
+    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
     let model = match (&a.data.model, a.refit) {
         (Some(f), false) => Model::load(f)?,
         _ => a.data.model(&p)?,
@@ -277,7 +276,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
             (
                 "metrics".into(),
                 match &resampled {
-                    Some(n) => format!("{n}\n{}", m.to_text()),
+                    Some(r) => format!("{}\n{}", r.note(&a.data.file), m.to_text()),
                     None => m.to_text(),
                 },
             ),
@@ -371,7 +370,7 @@ fn auto_text(steps: &[AutoStep]) -> String {
 
 /// Run `diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
-    let p = a.data.prepared(&a.data.file)?;
+    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
     let mut model = a.data.model(&p)?;
     let opts = Options {
         alpha: a.alpha,
@@ -382,7 +381,9 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     if !a.auto {
         let d = diagnose::diagnose(&model, &p, &opts);
         if a.json {
-            println!("{}", d.to_json());
+            let mut j = d.to_json();
+            j["resampled"] = serde_json::json!(resampled);
+            println!("{j}");
         } else {
             print!("{}", d.to_text());
         }
@@ -495,6 +496,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 "stop": run.stop,
                 "final": run.last.to_json(),
                 "model": model.to_sim(),
+                "resampled": resampled,
             })
         );
     } else {
@@ -627,7 +629,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
 
 /// Run `fit`.
 pub fn fit(a: FitArgs) -> anyhow::Result<()> {
-    let p = a.data.prepared(&a.data.file)?;
+    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
     let mut model = match &a.data.model {
         Some(f) => Model::load(f)?,
         None => Model::baseline(),
@@ -667,7 +669,12 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::json!({ "report": r, "as_given": as_given, "model_file": a.save_model })
+            serde_json::json!({
+                "report": r,
+                "as_given": as_given,
+                "model_file": a.save_model,
+                "resampled": resampled,
+            })
         );
     } else {
         if let Some(g) = as_given.as_ref().and_then(|g| g.text(&r)) {

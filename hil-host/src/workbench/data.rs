@@ -58,8 +58,8 @@ pub enum DataError {
     /// The sample interval is not uniform (a gap, or a jump in the clock).
     #[error(
         "{file}:{line}: column `{column}`: the sample interval {step} s is far from the \
-         record's {median} s (over 3× or under a third: a gap or a jump in time); the \
-         workbench needs uniform sampling — resample the record first"
+         record's {median} s (over 3× or under a third: a gap or a jump in time); jitter is \
+         interpolated away, a gap is not — split the record at the gap"
     )]
     UnevenSampling {
         /// File.
@@ -75,8 +75,8 @@ pub enum DataError {
     },
     /// A column holds one value throughout: there is no excitation (or no motion) to fit.
     #[error(
-        "{file}: column `{column}` is {value} on every row (after --input-gain): nothing moves \
-         or drives the joint, so there is nothing to fit"
+        "{file}: column `{column}` is {value} on every row (after --input-gain and \
+         --input-times): nothing moves or drives the joint, so there is nothing to fit"
     )]
     Constant {
         /// File.
@@ -202,24 +202,49 @@ pub struct Recording {
     pub columns: Columns,
     /// How the record's irregular clock was made uniform, if it was (see [`Resampled`]).
     pub resampled: Option<Resampled>,
+    /// The columns as recorded when the record was resampled (`None` otherwise: they are
+    /// `input`, `output` and `load_output` themselves).
+    pub recorded: Option<Recorded>,
 }
 
 /// A record whose sample intervals vary (a host polling a drive: the XL330 servo logs in
-/// `../shared/data/real` step 3.2–7.1 ms around a 5.3 ms median) is put on a uniform clock
+/// `../shared/data/real` step 3.4–7.1 ms around a 5.3 ms median) is put on a uniform clock
 /// before anything differentiates it: the differentiator and every fingerprint assume one
-/// sample period, and a 30 % longer interval read as the nominal one is a 30 % error in that
+/// sample period, and a 15 % longer interval read as the nominal one is a 15 % error in that
 /// sample's velocity. Every column is interpolated linearly onto `t0 + k·dt`, k = 0 … N − 1,
 /// with the record's own N and mean interval dt, so no samples are invented or dropped.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Interpolation averages neighbouring samples, which hides both the encoder's step and the
+/// noise: the columns *as recorded* are kept ([`Recorded`]) and the noise statistics (the
+/// quantisation step, the position's and the input's noise) are taken from them. A record
+/// logged at two rates (the XL330's `lift_and_drop`: 5.3 ms with the drive on, 4 ms off) is
+/// put on its mean interval without an anti-alias filter, so its faster part is decimated.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Resampled {
     /// Shortest interval in the file (s).
+    #[serde(rename = "min_step_s")]
     pub min_step: f64,
     /// Longest interval in the file (s).
+    #[serde(rename = "max_step_s")]
     pub max_step: f64,
     /// Median interval in the file (s).
+    #[serde(rename = "median_step_s")]
     pub median_step: f64,
     /// The uniform interval now (s): the mean of the file's.
+    #[serde(rename = "dt_s")]
     pub dt: f64,
+}
+
+/// The input, output and load columns as the file held them, on its own (irregular) clock,
+/// in SI units: kept beside a [`Resampled`] record for its noise statistics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    /// Input.
+    pub input: Vec<f64>,
+    /// Output position.
+    pub output: Vec<f64>,
+    /// Load-side position, if requested.
+    pub load_output: Option<Vec<f64>>,
 }
 
 impl Resampled {
@@ -299,10 +324,10 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     if let Some(c) = &cols.load_output {
         names.push(c);
     }
-    if let Some(c) = &cols.input_times {
+    let times_at = cols.input_times.as_deref().map(|c| {
         names.push(c);
-    }
-    let times_at = names.len() - 1;
+        names.len() - 1
+    });
     let (raw, lines) = read_numeric(path, &names)?;
     let (_, ts) = unit_of(&cols.time);
     let (_, us) = unit_of(&cols.input);
@@ -325,9 +350,8 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
     }
     let mut input = scale(1, us * cols.input_gain);
-    if let Some(c) = &cols.input_times {
-        let f = unit_of(c).1;
-        for (u, m) in input.iter_mut().zip(scale(times_at, f)) {
+    if let (Some(c), Some(k)) = (&cols.input_times, times_at) {
+        for (u, m) in input.iter_mut().zip(scale(k, unit_of(c).1)) {
             *u *= m;
         }
     }
@@ -345,8 +369,9 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     }
     // Uniform sampling: the differentiator and every fingerprint assume one sample period,
     // so a gap (dropped rows) or a jump in the clock would silently bend the fit. Jitter is
-    // interpolated away below (the XL330 servo records in ../shared/data/real reach 1.74×
-    // their median interval; see `Resampled`); a gap of two or more samples is not.
+    // interpolated away below (the XL330 servo records in ../shared/data/real reach 1.34×
+    // their median interval; see `Resampled`); an interval over 3× the median is a gap that
+    // interpolation would bridge with a straight line, and is refused.
     let mut gaps: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
     gaps.sort_by(|a, b| a.total_cmp(b));
     let median = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0);
@@ -380,16 +405,21 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
             median_step: median,
             dt,
         });
-    let (time, input, output, load_out) = if resampled.is_some() {
+    let (time, input, output, load_out, recorded) = if resampled.is_some() {
         let on_clock = |x: &[f64]| interpolate_uniform(&time, x, dt);
         (
             (0..time.len()).map(|k| time[0] + k as f64 * dt).collect(),
             on_clock(&input),
             on_clock(&output),
             load_out.as_deref().map(on_clock),
+            Some(Recorded {
+                input,
+                output,
+                load_output: load_out,
+            }),
         )
     } else {
-        (time, input, output, load_out)
+        (time, input, output, load_out, None)
     };
     Ok(Recording {
         path: file,
@@ -401,11 +431,13 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         units: (input_unit(cols), yu.to_string()),
         columns: cols.clone(),
         resampled,
+        recorded,
     })
 }
 
-/// Load named columns as raw numbers (no unit conversion), with the same error checks.
-/// For extra signals a command needs beside input/output (a reference, a pulse train).
+/// Load named columns as raw numbers (no unit conversion, no resampling), with the same
+/// error checks. For extra signals a command needs beside input/output (a reference, a pulse
+/// train).
 pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
     read_numeric(path, names).map(|(cols, _)| cols)
 }

@@ -785,7 +785,9 @@ fn unexplained(b: &Baseline, verdict: Option<&str>) -> Option<String> {
              has no fingerprint for (load-dependent friction, a drive's current limit or \
              saturation, a further mode, …) — `compare` shows where it lives (by time, \
              velocity, position phase and load level)",
-            if b.ljung_box_p < 0.01 {
+            if b.ljung_box_p < 1e-16 {
+                " and not white (Ljung–Box p < 1e-16)".to_string()
+            } else if b.ljung_box_p < 0.01 {
                 format!(" and not white (Ljung–Box p {:.1e})", b.ljung_box_p)
             } else {
                 String::new()

@@ -409,6 +409,7 @@ fn record_with_load(
         units: ("N·m".into(), "rad".into()),
         columns: Columns::new("torque_Nm", "q_rad"),
         resampled: None,
+        recorded: None,
     };
     (rec, [m.load_position, m.motor_true])
 }

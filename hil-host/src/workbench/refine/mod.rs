@@ -366,6 +366,7 @@ mod tests {
             units: ("N·m".into(), "rad".into()),
             columns: Columns::new("torque_Nm", "q_rad"),
             resampled: None,
+            recorded: None,
         };
         Prepared::new(&rec, Some(40.0))
     }

@@ -521,6 +521,7 @@ mod tests {
             units: ("N·m".into(), "rad".into()),
             columns: crate::workbench::data::Columns::new("u", "q"),
             resampled: None,
+            recorded: None,
         };
         let p = Prepared::new(&rec, Some(40.0));
         let m = Model::baseline();
