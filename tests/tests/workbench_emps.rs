@@ -19,16 +19,7 @@ use sim_plant::effects::EffectKind;
 const GTAU: f64 = 35.150_651_882_485_47;
 
 fn emps_dir() -> Option<PathBuf> {
-    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/emps");
-    if d.join("DATA_EMPS.csv").exists() {
-        Some(d)
-    } else {
-        eprintln!(
-            "\n!!!!!! SKIPPING EMPS TEST: {} not found (CI must have ../shared) !!!!!!\n",
-            d.display()
-        );
-        None
-    }
+    jointlab_tests::real_data("emps", "DATA_EMPS.csv")
 }
 
 fn cols() -> Columns {

@@ -31,17 +31,7 @@ const G: f64 = 9.80665;
 const ARMATURE: [f64; 2] = [1.643e-3, 1.81e-3];
 
 fn servo_dir() -> Option<PathBuf> {
-    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/real/servo_xl330_pendulum_bam/csv");
-    if d.join("sin_sin_kp100.csv").exists() {
-        Some(d)
-    } else {
-        eprintln!(
-            "\n!!!!!! SKIPPING XL330 SERVO TEST: {} not found (CI must have ../shared) !!!!!!\n",
-            d.display()
-        );
-        None
-    }
+    jointlab_tests::real_data("servo_xl330_pendulum_bam/csv", "sin_sin_kp100.csv")
 }
 
 fn cols() -> Columns {

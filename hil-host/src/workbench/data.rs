@@ -514,26 +514,32 @@ fn read_numeric(path: &Path, names: &[&str]) -> Result<(Vec<Vec<f64>>, Vec<u64>)
 mod tests {
     use super::*;
 
+    /// Write `csv` to a scratch file named `name`, load it with `cols`, remove the file.
+    fn load_text(name: &str, csv: &str, cols: &Columns) -> Recording {
+        let dir = std::env::temp_dir().join(format!("jointlab-data-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join(name);
+        std::fs::write(&path, csv).expect("write csv");
+        let rec = load(&path, cols).expect("load");
+        std::fs::remove_dir_all(&dir).ok();
+        rec
+    }
+
     /// A geared load encoder is brought onto the output column's axis by `load_gain`, after
     /// its own unit suffix (degrees here), and the other columns are untouched.
     #[test]
     fn load_column_is_scaled_by_its_unit_and_the_load_gain() {
-        let dir = std::env::temp_dir().join(format!("jointlab-data-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        let path = dir.join("geared.csv");
         let mut csv = String::from("time_s,torque_Nm,q_rad,out_deg\n");
         for k in 0..60 {
             let t = k as f64 * 1e-3;
             csv += &format!("{t},{},{},{}\n", 0.5 + t, 30.0 * t, t.to_degrees());
         }
-        std::fs::write(&path, csv).expect("write csv");
         let cols = Columns {
             load_output: Some("out_deg".into()),
             load_gain: 30.0,
             ..Columns::new("torque_Nm", "q_rad")
         };
-        let rec = load(&path, &cols).expect("load");
-        std::fs::remove_dir_all(&dir).ok();
+        let rec = load_text("geared.csv", &csv, &cols);
         let load = rec.load_output.as_ref().expect("load column");
         for (k, (&q, &l)) in rec.output.iter().zip(load).enumerate() {
             assert!(
@@ -550,9 +556,6 @@ mod tests {
     /// column is the input, in volts.
     #[test]
     fn irregular_clock_is_resampled_and_input_times_multiplies() {
-        let dir = std::env::temp_dir().join(format!("jointlab-jitter-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        let path = dir.join("polled.csv");
         let mut csv = String::from("t_s,duty,supply_V,q_rad\n");
         let mut t = 0.0;
         let mut times = Vec::new();
@@ -562,14 +565,12 @@ mod tests {
             csv += &format!("{t},{},{volts},{}\n", 0.5 - 0.001 * k as f64, 2.0 * t + 1.0);
             t += [4e-3, 6.5e-3, 5e-3, 5.5e-3][k % 4];
         }
-        std::fs::write(&path, csv).expect("write csv");
         let cols = Columns {
             time: "t_s".into(),
             input_times: Some("supply_V".into()),
             ..Columns::new("duty", "q_rad")
         };
-        let rec = load(&path, &cols).expect("load");
-        std::fs::remove_dir_all(&dir).ok();
+        let rec = load_text("polled.csv", &csv, &cols);
         let r = rec.resampled.expect("an irregular clock is resampled");
         assert!((r.min_step - 4e-3).abs() < 1e-12 && (r.max_step - 6.5e-3).abs() < 1e-12);
         let dt = (times[79] - times[0]) / 79.0;
@@ -583,27 +584,22 @@ mod tests {
         assert!((rec.input[0] - 0.5 * 7.0).abs() < 1e-12);
         assert!((rec.input[79] - (0.5 - 0.079) * 7.79).abs() < 1e-12);
         assert_eq!(rec.units.0, "V");
+        let note = r.note(Path::new("polled.csv"));
         assert!(
-            r.note(&path).contains("4.000–6.500 ms"),
-            "{}",
-            r.note(&path)
+            note.contains("polled.csv: the sample interval varies (4.000–6.500 ms"),
+            "{note}"
         );
     }
 
     /// A clock that is uniform up to its digits is left alone (no resampling, no note).
     #[test]
     fn uniform_clock_is_not_resampled() {
-        let dir = std::env::temp_dir().join(format!("jointlab-uniform-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        let path = dir.join("uniform.csv");
         let mut csv = String::from("time_s,torque_Nm,q_rad\n");
         for k in 0..60 {
             let t = k as f64 * 1e-3;
             csv += &format!("{t:.9},{},{}\n", (k % 7) as f64, (k * k) as f64 * 1e-4);
         }
-        std::fs::write(&path, csv).expect("write csv");
-        let rec = load(&path, &Columns::new("torque_Nm", "q_rad")).expect("load");
-        std::fs::remove_dir_all(&dir).ok();
+        let rec = load_text("uniform.csv", &csv, &Columns::new("torque_Nm", "q_rad"));
         assert_eq!(rec.resampled, None);
         assert_eq!(rec.output[59], 59.0 * 59.0 * 1e-4);
     }
