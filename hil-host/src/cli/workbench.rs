@@ -76,6 +76,13 @@ pub struct DataArgs {
     /// --input is a PWM duty in −1…1: duty × volts is the applied voltage).
     #[arg(long)]
     pub input_times: Option<String>,
+    /// Use only the rows from this time on (s, in the time column after its unit suffix).
+    /// Applies to the recording, not to --validate.
+    #[arg(long)]
+    pub from: Option<f64>,
+    /// Use only the rows up to this time (s). Applies to the recording, not to --validate.
+    #[arg(long)]
+    pub to: Option<f64>,
     /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
     #[arg(long)]
     pub model: Option<PathBuf>,
@@ -85,8 +92,17 @@ pub struct DataArgs {
 }
 
 impl DataArgs {
-    fn columns(&self) -> Columns {
+    /// The columns, with the --from/--to window when `windowed` (the recording itself, not a
+    /// --validate file — which may be the same file, validated on all of it).
+    fn columns(&self, windowed: bool) -> Columns {
+        let window = (windowed && (self.from.is_some() || self.to.is_some())).then(|| {
+            (
+                self.from.unwrap_or(f64::NEG_INFINITY),
+                self.to.unwrap_or(f64::INFINITY),
+            )
+        });
         Columns {
+            window,
             input: self.input.clone(),
             output: self.output.clone(),
             load_output: self.load_output.clone(),
@@ -96,13 +112,18 @@ impl DataArgs {
             load_gain: self.load_gain,
         }
     }
-    fn prepared(&self, file: &Path) -> anyhow::Result<Prepared> {
-        self.prepared_with_note(file).map(|(p, _)| p)
+    /// A --validate recording: the whole file, no window.
+    fn validation(&self, file: &Path) -> anyhow::Result<Prepared> {
+        self.load(file, false).map(|(p, _)| p)
     }
-    /// [`DataArgs::prepared`] and how the record was resampled, if it was (for a report; the
-    /// note is printed on stderr either way).
-    fn prepared_with_note(&self, file: &Path) -> anyhow::Result<(Prepared, Option<Resampled>)> {
-        let rec = data::load(file, &self.columns())?;
+    /// The recording (`file`, inside the --from/--to window), and how it was resampled.
+    fn recording(&self) -> anyhow::Result<(Prepared, Option<Resampled>)> {
+        self.load(&self.file, true)
+    }
+    /// `file` differentiated (inside the window if `windowed`), and how it was resampled, if
+    /// it was (for a report; the note is printed on stderr either way).
+    fn load(&self, file: &Path, windowed: bool) -> anyhow::Result<(Prepared, Option<Resampled>)> {
+        let rec = data::load(file, &self.columns(windowed))?;
         // On stderr: `--json` keeps exactly one object on stdout.
         if let Some(r) = &rec.resampled {
             eprintln!("{}", r.note(file));
@@ -238,7 +259,7 @@ pub struct FitArgs {
 
 /// Run `compare`.
 pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
-    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
+    let (p, resampled) = a.data.recording()?;
     let model = match (&a.data.model, a.refit) {
         (Some(f), false) => Model::load(f)?,
         _ => a.data.model(&p)?,
@@ -262,7 +283,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     }
     let m = metrics::compute(&res, a.period);
     let rec_units = if mode == Mode::Equation {
-        data::input_unit(&a.data.columns())
+        data::input_unit(&a.data.columns(true))
     } else {
         data::unit_of(&a.data.output).0.to_string()
     };
@@ -370,7 +391,7 @@ fn auto_text(steps: &[AutoStep]) -> String {
 
 /// Run `diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
-    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
+    let (p, resampled) = a.data.recording()?;
     let mut model = a.data.model(&p)?;
     let opts = Options {
         alpha: a.alpha,
@@ -390,7 +411,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let val = match &a.validate {
-        Some(f) => Some(a.data.prepared(f)?),
+        Some(f) => Some(a.data.validation(f)?),
         None => None,
     };
     // Each step refits its leading candidates in full (minutes on a long record): a spinner
@@ -466,7 +487,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         charts.extend(report::charts(
             &res,
             &m,
-            &data::input_unit(&a.data.columns()),
+            &data::input_unit(&a.data.columns(true)),
         ));
         report_path = Some(
             report::write(
@@ -629,7 +650,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
 
 /// Run `fit`.
 pub fn fit(a: FitArgs) -> anyhow::Result<()> {
-    let (p, resampled) = a.data.prepared_with_note(&a.data.file)?;
+    let (p, resampled) = a.data.recording()?;
     let mut model = match &a.data.model {
         Some(f) => Model::load(f)?,
         None => Model::baseline(),
@@ -654,7 +675,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         None => None,
     };
     let val = match &a.validate {
-        Some(f) => Some(a.data.prepared(f)?),
+        Some(f) => Some(a.data.validation(f)?),
         None => None,
     };
     // A model file's own values, scored before `fit` refits them: "before" is the model

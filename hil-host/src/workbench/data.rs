@@ -110,6 +110,27 @@ pub enum DataError {
         /// Message.
         msg: String,
     },
+    /// The `--from`/`--to` window holds too few rows.
+    #[error(
+        "{file}: --from {from} --to {to} (s) holds {rows} rows of a record spanning \
+         {first}–{last} s; need at least {need}"
+    )]
+    Window {
+        /// File.
+        file: PathBuf,
+        /// Window start (s).
+        from: f64,
+        /// Window end (s).
+        to: f64,
+        /// Rows inside it.
+        rows: usize,
+        /// The record's first time (s).
+        first: f64,
+        /// The record's last time (s).
+        last: f64,
+        /// Needed.
+        need: usize,
+    },
     /// Too few rows to do anything.
     #[error("{file}: only {rows} data rows; need at least {need}")]
     TooShort {
@@ -160,6 +181,10 @@ pub struct Columns {
     /// A second column the input is multiplied by, row by row, before the gain: the measured
     /// supply voltage for a drive that logs its PWM duty (duty × volts = the applied voltage).
     pub input_times: Option<String>,
+    /// Only the rows whose time (s, after the unit suffix) lies in `[from, to]`: a segment of a
+    /// record (the drive-on part of a log that switches it off; an estimation half). `None` =
+    /// every row.
+    pub window: Option<(f64, f64)>,
     /// Gain from the load column to the output column's axis: the gear ratio N when the load
     /// encoder sits at the output and the output column is the motor shaft. The deflection
     /// motor − load is only meaningful with both on one axis.
@@ -176,6 +201,7 @@ impl Columns {
             time: "time_s".into(),
             input_gain: 1.0,
             input_times: None,
+            window: None,
             load_gain: 1.0,
         }
     }
@@ -360,6 +386,33 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         .load_output
         .as_deref()
         .map(|c| scale(3, unit_of(c).1 * cols.load_gain));
+    // The window: time increases, so its rows are one contiguous run.
+    let (time, input, output, load_out, lines) = match cols.window {
+        Some((from, to)) => {
+            let i0 = time.partition_point(|&t| t < from);
+            let i1 = time.partition_point(|&t| t <= to).max(i0);
+            if i1 - i0 < 50 {
+                return Err(DataError::Window {
+                    file,
+                    from,
+                    to,
+                    rows: i1 - i0,
+                    first: time.first().copied().unwrap_or(f64::NAN),
+                    last: time.last().copied().unwrap_or(f64::NAN),
+                    need: 50,
+                });
+            }
+            let cut = |x: Vec<f64>| x[i0..i1].to_vec();
+            (
+                cut(time),
+                cut(input),
+                cut(output),
+                load_out.map(cut),
+                lines[i0..i1].to_vec(),
+            )
+        }
+        None => (time, input, output, load_out, lines),
+    };
     if time.len() < 50 {
         return Err(DataError::TooShort {
             file,
@@ -602,5 +655,36 @@ mod tests {
         let rec = load_text("uniform.csv", &csv, &Columns::new("torque_Nm", "q_rad"));
         assert_eq!(rec.resampled, None);
         assert_eq!(rec.output[59], 59.0 * 59.0 * 1e-4);
+    }
+
+    /// `--from/--to` keep the rows whose time lies inside, inclusive, and a window that holds
+    /// too few rows is an error naming the window and the record's span.
+    #[test]
+    fn window_keeps_the_rows_inside_and_refuses_a_thin_one() {
+        let mut csv = String::from("time_s,torque_Nm,q_rad\n");
+        for k in 0..300 {
+            let t = k as f64 * 1e-2;
+            csv += &format!("{t},{},{}\n", (k % 5) as f64, t * t);
+        }
+        let within = |from: f64, to: f64| Columns {
+            window: Some((from, to)),
+            ..Columns::new("torque_Nm", "q_rad")
+        };
+        let rec = load_text("window.csv", &csv, &within(0.5, 1.5));
+        assert_eq!(rec.len(), 101);
+        assert!((rec.time[0] - 0.5).abs() < 1e-12 && (rec.time[100] - 1.5).abs() < 1e-12);
+        assert!((rec.output[0] - 0.25).abs() < 1e-12);
+        let dir = std::env::temp_dir().join(format!("jointlab-thin-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join("thin.csv");
+        std::fs::write(&path, &csv).expect("write csv");
+        let e = load(&path, &within(2.495, 2.805))
+            .expect_err("31 rows")
+            .to_string();
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(
+            e.contains("--from 2.495 --to 2.805 (s) holds 31 rows") && e.contains("0–2.99 s"),
+            "{e}"
+        );
     }
 }
