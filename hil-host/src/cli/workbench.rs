@@ -76,12 +76,12 @@ pub struct DataArgs {
     /// --input is a PWM duty in −1…1: duty × volts is the applied voltage).
     #[arg(long)]
     pub input_times: Option<String>,
-    /// Use only the rows from this time on (s, in the time column after its unit suffix).
-    /// Applies to the recording, not to --validate.
-    #[arg(long)]
+    /// Use only the rows from this time on (s, in the time column after its unit suffix). A
+    /// --validate file, where the command has one, is used whole.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub from: Option<f64>,
-    /// Use only the rows up to this time (s). Applies to the recording, not to --validate.
-    #[arg(long)]
+    /// Use only the rows up to this time (s). A --validate file is used whole.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub to: Option<f64>,
     /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
     #[arg(long)]
@@ -112,8 +112,16 @@ impl DataArgs {
             load_gain: self.load_gain,
         }
     }
-    /// A --validate recording: the whole file, no window.
+    /// A --validate recording: the whole file, no window. The recording itself, unwindowed,
+    /// is estimation data scored again, and the note says so.
     fn validation(&self, file: &Path) -> anyhow::Result<Prepared> {
+        if file == self.file && self.from.is_none() && self.to.is_none() {
+            eprintln!(
+                "note: --validate {} is the recording itself: its scores are the estimation \
+                 scores again (--from/--to hold out part of it)",
+                file.display()
+            );
+        }
         self.load(file, false).map(|(p, _)| p)
     }
     /// The recording (`file`, inside the --from/--to window), and how it was resampled.
@@ -123,8 +131,23 @@ impl DataArgs {
     /// `file` differentiated (inside the window if `windowed`), and how it was resampled, if
     /// it was (for a report; the note is printed on stderr either way).
     fn load(&self, file: &Path, windowed: bool) -> anyhow::Result<(Prepared, Option<Resampled>)> {
-        let rec = data::load(file, &self.columns(windowed))?;
+        if let (Some(from), Some(to)) = (self.from, self.to) {
+            if from >= to {
+                bail!("--from {from} --to {to}: the window must start before it ends");
+            }
+        }
+        let cols = self.columns(windowed);
+        let rec = data::load(file, &cols)?;
         // On stderr: `--json` keeps exactly one object on stdout.
+        if cols.window.is_some() {
+            eprintln!(
+                "note: {}: the {} rows from {:.4} to {:.4} s (--from/--to)",
+                file.display(),
+                rec.len(),
+                rec.time.first().copied().unwrap_or(f64::NAN),
+                rec.time.last().copied().unwrap_or(f64::NAN)
+            );
+        }
         if let Some(r) = &rec.resampled {
             eprintln!("{}", r.note(file));
         }
@@ -160,6 +183,16 @@ fn probability(s: &str) -> Result<f64, String> {
         Ok(x)
     } else {
         Err(format!("{x} is not a probability strictly between 0 and 1"))
+    }
+}
+
+/// A finite number (`--from`, `--to`).
+fn finite(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("`{s}`: {e}"))?;
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("{x} is not a finite time"))
     }
 }
 

@@ -113,7 +113,7 @@ pub enum DataError {
     /// The `--from`/`--to` window holds too few rows.
     #[error(
         "{file}: --from {from} --to {to} (s) holds {rows} rows of a record spanning \
-         {first}–{last} s; need at least {need}"
+         {first:.4}–{last:.4} s; need at least {need}"
     )]
     Window {
         /// File.
@@ -683,7 +683,8 @@ mod tests {
             .to_string();
         std::fs::remove_dir_all(&dir).ok();
         assert!(
-            e.contains("--from 2.495 --to 2.805 (s) holds 31 rows") && e.contains("0–2.99 s"),
+            e.contains("--from 2.495 --to 2.805 (s) holds 31 rows")
+                && e.contains("0.0000–2.9900 s"),
             "{e}"
         );
     }
