@@ -131,11 +131,6 @@ impl DataArgs {
     /// `file` differentiated (inside the window if `windowed`), and how it was resampled, if
     /// it was (for a report; the note is printed on stderr either way).
     fn load(&self, file: &Path, windowed: bool) -> anyhow::Result<(Prepared, Option<Resampled>)> {
-        if let (Some(from), Some(to)) = (self.from, self.to) {
-            if from >= to {
-                bail!("--from {from} --to {to}: the window must start before it ends");
-            }
-        }
         let cols = self.columns(windowed);
         let rec = data::load(file, &cols)?;
         // On stderr: `--json` keeps exactly one object on stdout.

@@ -110,6 +110,16 @@ pub enum DataError {
         /// Message.
         msg: String,
     },
+    /// The `--from`/`--to` window ends where or before it starts.
+    #[error("{file}: --from {from} --to {to}: the window must start before it ends")]
+    ReversedWindow {
+        /// File.
+        file: PathBuf,
+        /// Window start (s).
+        from: f64,
+        /// Window end (s).
+        to: f64,
+    },
     /// The `--from`/`--to` window holds too few rows.
     #[error(
         "{file}: --from {from} --to {to} (s) holds {rows} rows of a record spanning \
@@ -323,13 +333,11 @@ impl Recording {
 /// `--input-gain` when there is one (`V×35.15…` for EMPS). With `--input-times` the unit is
 /// the product's (a unitless duty times a `_V` column reads `V`).
 pub fn input_unit(cols: &Columns) -> String {
+    let base = unit_of(&cols.input).0;
     let u = match cols.input_times.as_deref().map(|c| unit_of(c).0) {
-        Some(t) => match (unit_of(&cols.input).0, t) {
-            ("", t) => t.to_string(),
-            (u, "") => u.to_string(),
-            (u, t) => format!("{u}·{t}"),
-        },
-        None => unit_of(&cols.input).0.to_string(),
+        None | Some("") => base.to_string(),
+        Some(t) if base.is_empty() => t.to_string(),
+        Some(t) => format!("{base}·{t}"),
     };
     if cols.input_gain != 1.0 {
         format!("{u}×{}", cols.input_gain)
@@ -337,6 +345,10 @@ pub fn input_unit(cols: &Columns) -> String {
         u.to_string()
     }
 }
+
+/// Fewest rows a recording (or its `--from/--to` window) may hold: below it the
+/// differentiator's trimmed edges leave too little to fit.
+const MIN_ROWS: usize = 50;
 
 /// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
 /// time with the file, line and column in the message.
@@ -389,9 +401,12 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     // The window: time increases, so its rows are one contiguous run.
     let (time, input, output, load_out, lines) = match cols.window {
         Some((from, to)) => {
+            if from >= to {
+                return Err(DataError::ReversedWindow { file, from, to });
+            }
             let i0 = time.partition_point(|&t| t < from);
             let i1 = time.partition_point(|&t| t <= to).max(i0);
-            if i1 - i0 < 50 {
+            if i1 - i0 < MIN_ROWS {
                 return Err(DataError::Window {
                     file,
                     from,
@@ -399,7 +414,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
                     rows: i1 - i0,
                     first: time.first().copied().unwrap_or(f64::NAN),
                     last: time.last().copied().unwrap_or(f64::NAN),
-                    need: 50,
+                    need: MIN_ROWS,
                 });
             }
             let cut = |x: Vec<f64>| x[i0..i1].to_vec();
@@ -413,18 +428,18 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
         None => (time, input, output, load_out, lines),
     };
-    if time.len() < 50 {
+    if time.len() < MIN_ROWS {
         return Err(DataError::TooShort {
             file,
             rows: time.len(),
-            need: 50,
+            need: MIN_ROWS,
         });
     }
     // Uniform sampling: the differentiator and every fingerprint assume one sample period,
     // so a gap (dropped rows) or a jump in the clock would silently bend the fit. Jitter is
-    // interpolated away below (the XL330 servo records in ../shared/data/real reach 1.34×
-    // their median interval; see `Resampled`); an interval over 3× the median is a gap that
-    // interpolation would bridge with a straight line, and is refused.
+    // interpolated away below (the XL330 servo records in ../shared/data/real reach 1.74×
+    // their median interval, logged at two rates; see `Resampled`); an interval over 3× the
+    // median is a gap that interpolation would bridge with a straight line, and is refused.
     let mut gaps: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
     gaps.sort_by(|a, b| a.total_cmp(b));
     let median = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0);
@@ -657,8 +672,8 @@ mod tests {
         assert_eq!(rec.output[59], 59.0 * 59.0 * 1e-4);
     }
 
-    /// `--from/--to` keep the rows whose time lies inside, inclusive, and a window that holds
-    /// too few rows is an error naming the window and the record's span.
+    /// `--from/--to` keep the rows whose time lies inside, inclusive; a reversed window, or one
+    /// that holds too few rows, is an error naming the window (and the record's span).
     #[test]
     fn window_keeps_the_rows_inside_and_refuses_a_thin_one() {
         let mut csv = String::from("time_s,torque_Nm,q_rad\n");
@@ -678,6 +693,10 @@ mod tests {
         std::fs::create_dir_all(&dir).expect("temp dir");
         let path = dir.join("thin.csv");
         std::fs::write(&path, &csv).expect("write csv");
+        let reversed = load(&path, &within(2.0, 1.0))
+            .expect_err("reversed")
+            .to_string();
+        assert!(reversed.contains("must start before it ends"), "{reversed}");
         let e = load(&path, &within(2.495, 2.805))
             .expect_err("31 rows")
             .to_string();

@@ -879,9 +879,12 @@ mod tests {
     fn a_residual_above_its_floor_with_no_verdict_gets_a_note() {
         let note = unexplained(&baseline(3.24, 0.0), None).expect("3.24× the floor, no verdict");
         assert!(
-            note.contains("3.24× its noise floor") && note.contains("not white"),
+            note.contains("3.24× its noise floor")
+                && note.contains("not white (Ljung–Box p < 1e-16)"),
             "{note}"
         );
+        let some = unexplained(&baseline(3.0, 1e-4), None).expect("3× the floor");
+        assert!(some.contains("not white (Ljung–Box p 1.0e-4)"), "{some}");
         let white = unexplained(&baseline(2.0, 0.5), None).expect("2× the floor");
         assert!(!white.contains("not white"), "{white}");
         assert_eq!(unexplained(&baseline(1.1, 0.0), None), None);
