@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
-use sim_plant::effects::EffectKind;
+use sim_plant::effects::{EffectKind, Intersample};
 
 use crate::workbench::data::{self, Columns, Resampled};
 use crate::workbench::diagnose::{self, Options};
@@ -89,6 +89,13 @@ pub struct DataArgs {
     /// Differentiator cut-off, Hz (default: a tenth of the sample rate).
     #[arg(long)]
     pub cutoff: Option<f64>,
+    /// What the input did between samples: `zoh` (a drive's log: position sampled when the
+    /// command was computed, the command then held — a half-sample lag the baseline accounts
+    /// for, so `delay` means a delay beyond the hold), `foh` (linear between samples), `mid`
+    /// (command held, position logged mid-hold), `bl` (band-limited samples). Also applies to
+    /// a --validate file.
+    #[arg(long, default_value = "zoh", value_parser = intersample)]
+    pub intersample: Intersample,
 }
 
 impl DataArgs {
@@ -110,6 +117,7 @@ impl DataArgs {
             input_gain: self.input_gain,
             input_times: self.input_times.clone(),
             load_gain: self.load_gain,
+            intersample: self.intersample,
         }
     }
     /// A --validate recording: the whole file, no window. The recording itself, unwindowed,
@@ -179,6 +187,11 @@ fn probability(s: &str) -> Result<f64, String> {
     } else {
         Err(format!("{x} is not a probability strictly between 0 and 1"))
     }
+}
+
+/// `--intersample`: one of the names of [`Intersample`].
+fn intersample(s: &str) -> Result<Intersample, String> {
+    s.parse()
 }
 
 /// A finite number (`--from`, `--to`).

@@ -6,6 +6,7 @@
 //! unit is not SI, the factor that converts it (`_deg` → rad, `_mm` → m, `_ms` → s). HIL
 //! recordings use the same convention, so they load directly.
 
+use sim_plant::effects::Intersample;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
@@ -199,6 +200,9 @@ pub struct Columns {
     /// encoder sits at the output and the output column is the motor shaft. The deflection
     /// motor − load is only meaningful with both on one axis.
     pub load_gain: f64,
+    /// What the input did between its samples relative to when the position was sampled
+    /// (default: zero-order hold, how a drive logs; see `sim_plant::effects::Intersample`).
+    pub intersample: Intersample,
 }
 
 impl Columns {
@@ -213,7 +217,14 @@ impl Columns {
             input_times: None,
             window: None,
             load_gain: 1.0,
+            intersample: Intersample::default(),
         }
+    }
+
+    /// The same columns with another intersample behaviour.
+    pub fn with_intersample(mut self, intersample: Intersample) -> Self {
+        self.intersample = intersample;
+        self
     }
 }
 

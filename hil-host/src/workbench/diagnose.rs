@@ -146,6 +146,8 @@ pub struct Verdict {
 pub struct Diagnosis {
     /// Residual used.
     pub residual_mode: String,
+    /// The input's intersample behaviour the residual assumed (`zoh`, `foh`, `mid`, `bl`).
+    pub intersample: String,
     /// Current-model numbers.
     pub baseline: Baseline,
     /// Ranked candidates.
@@ -732,14 +734,46 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     if let Some(note) = unexplained(&baseline, verdict.add.as_deref()) {
         notes.push(note);
     }
+    if let Some(note) = intersample_note(model, p, opts, rss) {
+        notes.push(note);
+    }
     Diagnosis {
         residual_mode: residual::Mode::Equation.name().into(),
+        intersample: p.intersample.name().into(),
         baseline,
         candidates: cands,
         verdict,
         untestable,
         notes,
     }
+}
+
+/// A note when the record fits another intersample behaviour clearly better than the one
+/// assumed — by the practical thresholds a candidate effect must pass (`min_err` of the
+/// residual and `min_rho` × the noise floor): the two differ by half a sample of lag, which
+/// a wrong convention leaves in the residual as a delay of either sign.
+fn intersample_note(model: &Model, p: &Prepared, opts: &Options, rss: f64) -> Option<String> {
+    use sim_plant::effects::Intersample;
+    let (best, best_rss) = [Intersample::Zoh, Intersample::Foh, Intersample::Mid]
+        .into_iter()
+        .filter(|&i| i != p.intersample)
+        .filter_map(|is| {
+            let q = p.with_intersample(is);
+            let d = residual::design(model, &q);
+            fit::least_squares(&d.cols, &d.y).ok().map(|f| (is, f.rss))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let gain = 1.0 - best_rss / rss;
+    let explained_rms = ((rss - best_rss).max(0.0) / p.len() as f64).sqrt();
+    (gain >= opts.min_err && explained_rms >= opts.min_rho * p.noise_floor).then(|| {
+        format!(
+            "the input fits {:.1} % better read as `{best}` ({}) than as `{}`: if that is how \
+             the record was logged, pass --intersample {best}",
+            100.0 * gain,
+            best.describe(),
+            p.intersample
+        )
+    })
 }
 
 /// RMS of a residual, in units of its noise floor, up to which it counts as "at the floor":
@@ -801,6 +835,7 @@ impl Diagnosis {
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({
             "residual_mode": self.residual_mode,
+            "intersample": self.intersample,
             "baseline": self.baseline,
             "candidates": self.candidates,
             "verdict": self.verdict,
@@ -815,6 +850,7 @@ impl Diagnosis {
         let mut s = String::new();
         let b = &self.baseline;
         let _ = writeln!(s, "model: {}", b.model);
+        let _ = writeln!(s, "input between samples: {}", self.intersample);
         let _ = writeln!(
             s,
             "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e} (input {:.3e}, \

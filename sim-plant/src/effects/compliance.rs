@@ -109,7 +109,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         shape.compliance_damping,
         1.0 / traj.dt,
     );
-    vec![traj.lowpass(&hp)[window].to_vec()]
+    vec![traj.input_lowpass(&hp)[window].to_vec()]
 }
 
 /// The motion form of the column: the same residual of the 2-mass plant written with the

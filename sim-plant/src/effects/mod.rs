@@ -25,8 +25,11 @@
 //! `J·a = input − Σ R`, so an inverse-dynamics residual `r = input − model_input` of a model
 //! missing the effect equals `R`, and the fingerprint columns are a basis of `R`.
 
+pub mod intersample;
 pub mod laws;
 pub mod signal;
+
+pub use intersample::Intersample;
 
 pub use laws::{
     ActuatorLaw, AdditiveTorque, EffectLaws, FrictionLaw, Node, PeriodicTorque, SpringLaw,
@@ -72,6 +75,9 @@ pub struct Trajectory<'a> {
     /// instead of inferred from the motor's motion (backlash uses it, see
     /// `backlash::fingerprint`).
     pub load_position: &'a [f64],
+    /// How `raw_input` behaved between its samples: columns built from it are mapped onto the
+    /// position's sample instants ([`Trajectory::input_lowpass`]) as the residual's input was.
+    pub intersample: Intersample,
 }
 
 impl<'a> Trajectory<'a> {
@@ -96,6 +102,7 @@ impl<'a> Trajectory<'a> {
             raw_acceleration: &[],
             lowpass_hz: 0.0,
             load_position: &[],
+            intersample: Intersample::Bl,
         }
     }
 
@@ -121,6 +128,14 @@ impl<'a> Trajectory<'a> {
         } else {
             x.to_vec()
         }
+    }
+
+    /// A column computed from the recorded input (`raw_input`, sample for sample), mapped onto
+    /// the position's sample instants by the record's [`Intersample`] behaviour and low-passed
+    /// as the residual was: what the residual's own input went through.
+    pub fn input_lowpass(&self, x: &[f64]) -> Vec<f64> {
+        let fs = if self.dt > 0.0 { 1.0 / self.dt } else { 0.0 };
+        self.intersample.band_limited(x, self.lowpass_hz, fs)
     }
 
     /// The recorded input and the window of it the trajectory covers: `raw_input` (the whole

@@ -76,7 +76,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
         } else {
             u.iter().map(|&u| error(u, d)).collect()
         };
-        traj.lowpass(&saw)[window].to_vec()
+        traj.input_lowpass(&saw)[window].to_vec()
     } else {
         vec![0.0; window.len()]
     }]

@@ -17,6 +17,7 @@
 //! * **Noise floor** for the refit check = the baseline's RMS on the validation twin (fitted on
 //!   the estimation twin): the best a correct model can do on that record.
 
+pub mod record;
 pub mod truth;
 
 use hil_host::workbench::data::{Columns, Recording};
@@ -27,7 +28,7 @@ use hil_host::workbench::residual::{self, Prepared};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use sim_plant::effects::{EffectKind, Shape};
+use sim_plant::effects::{EffectKind, Intersample, Shape};
 
 use truth::{Controller, Plant};
 
@@ -407,7 +408,8 @@ fn record_with_load(
         load_output,
         dt: DT,
         units: ("N·m".into(), "rad".into()),
-        columns: Columns::new("torque_Nm", "q_rad"),
+        // The truth logs each command with the position at the middle of its hold.
+        columns: Columns::new("torque_Nm", "q_rad").with_intersample(Intersample::Mid),
         resampled: None,
         recorded: None,
     };

@@ -364,7 +364,9 @@ mod tests {
             load_output: None,
             dt,
             units: ("N·m".into(), "rad".into()),
-            columns: Columns::new("torque_Nm", "q_rad"),
+            // Torque and position sampled at the same instants.
+            columns: Columns::new("torque_Nm", "q_rad")
+                .with_intersample(sim_plant::effects::Intersample::Bl),
             resampled: None,
             recorded: None,
         };

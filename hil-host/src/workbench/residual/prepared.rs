@@ -3,7 +3,7 @@
 //! leave in the regressors estimated (quantisation step, position noise, the probe of the
 //! differentiator's response to it).
 
-use sim_plant::effects::Trajectory;
+use sim_plant::effects::{Intersample, Trajectory};
 
 use super::super::data::Recording;
 use super::super::diff;
@@ -76,6 +76,10 @@ pub struct Prepared {
     /// Variance of the load encoder's noise in the load's acceleration (as
     /// [`Prepared::acceleration_noise_var`]; 0 without a load position).
     pub load_acceleration_noise_var: f64,
+    /// How the recorded input behaved between samples (`Recording::columns`): [`Prepared::input`]
+    /// is the input mapped to the position's sample instants by it, and input-built columns
+    /// are mapped the same way (`Trajectory::input_lowpass`).
+    pub intersample: Intersample,
     /// The same preparation applied to a unit impulse of the raw position (zero input), on a
     /// record of the same length and window: the columns it gives are the impulse responses
     /// of the motion-linear regressors to the position's noise (see [`super::noise_gram`]). `None`
@@ -109,7 +113,10 @@ impl Prepared {
         let d = diff::differentiate(&rec.output, rec.dt, fc);
         let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
         let r = e..rec.len() - e;
-        let uf = diff::filtfilt(&rec.input, fc, 1.0 / rec.dt);
+        // The input at the position's sample instants (a drive's hold lags it half a sample),
+        // then the parallel filter.
+        let intersample = rec.columns.intersample;
+        let uf = intersample.band_limited(&rec.input, fc, 1.0 / rec.dt);
         // Noise is measured on the samples as recorded: a resampled record's interpolation
         // averages neighbours and would hide the encoder's step and part of the noise (on
         // the XL330 logs the step would read 40–500× finer than one count).
@@ -155,10 +162,25 @@ impl Prepared {
             acceleration_noise_var,
             load_position,
             load_acceleration_noise_var,
+            intersample,
             noise_probe: None,
         };
         p.input_instrument = instrument(&p);
         p.noise_probe = noise_probe(rec.len(), e, rec.dt, fc).map(Box::new);
+        p
+    }
+
+    /// The same record read with another intersample behaviour: the input (and the
+    /// instrument built on it) mapped to the position's instants that way instead.
+    pub fn with_intersample(&self, intersample: Intersample) -> Prepared {
+        let window = self.raw_offset..self.raw_offset + self.len();
+        let uf = intersample.band_limited(&self.raw_input, self.cutoff_hz, 1.0 / self.dt);
+        let mut p = Prepared {
+            input: uf[window].to_vec(),
+            intersample,
+            ..self.clone()
+        };
+        p.input_instrument = instrument(&p);
         p
     }
 
@@ -182,6 +204,7 @@ impl Prepared {
             raw_acceleration: &self.raw_acceleration,
             lowpass_hz: self.cutoff_hz,
             load_position: &self.load_position,
+            intersample: self.intersample,
         }
     }
 
@@ -243,6 +266,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64) -> Option<Prepared> {
         acceleration_noise_var: 0.0,
         load_position: Vec::new(),
         load_acceleration_noise_var: 0.0,
+        intersample: Intersample::Bl,
         noise_probe: None,
     })
 }
