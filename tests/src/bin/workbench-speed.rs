@@ -1,0 +1,103 @@
+//! The workbench's speed figures, each the best of three runs (release build):
+//!
+//! ```sh
+//! cargo run --release -p jointlab-tests --bin workbench-speed
+//! ```
+//! * `diagnose` on a 12 k-sample record and at N = 10⁵ (the RK4 truth's joint, 1 kHz, Coulomb
+//!   friction hidden), the whole path after loading: differentiation, baseline fit, every
+//!   library effect's shape search and test;
+//! * `diagnose --auto` on EMPS with its validation record (when `../shared` is beside the
+//!   repository);
+//! * `diagnose --auto` on the HIL lab's identification record (whoi-cable-30).
+//!
+//! It prints each time and its ratio to the goal; it asserts nothing (a wall clock depends on
+//! the machine).
+
+use std::time::Instant;
+
+use clap::Parser;
+use hil_host::workbench::data::{self, Columns, Recording};
+use hil_host::workbench::diagnose::{diagnose, Options};
+use hil_host::workbench::model::Model;
+use hil_host::workbench::refine;
+use hil_host::workbench::residual::Prepared;
+use jointlab_tests::hidden::long_record;
+
+/// Best of three wall-clock times of `f`, and its last result.
+fn best_of_3<T>(mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..3 {
+        let t0 = Instant::now();
+        last = Some(f());
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    (best, last.expect("three runs"))
+}
+
+fn row(what: &str, n: usize, secs: f64, goal: f64, result: &str) {
+    println!(
+        "{what:<34} N = {n:>7}  {secs:>8.3} s  goal {goal:>5.2} s  ratio {:>5.2}  {result}",
+        secs / goal
+    );
+}
+
+fn diagnose_time(what: &str, rec: &Recording, goal: f64) {
+    let (secs, verdict) = best_of_3(|| {
+        let p = Prepared::new(rec, None);
+        let mut m = Model::baseline();
+        refine::refit_all(&mut m, &p).expect("baseline fit");
+        diagnose(&m, &p, &Options::default()).verdict.text
+    });
+    row(what, rec.len(), secs, goal, &verdict);
+}
+
+fn auto_time(what: &str, rec: &Recording, val: Option<&Recording>, goal: f64) {
+    let (secs, steps) = best_of_3(|| {
+        let p = Prepared::new(rec, None);
+        let pv = val.map(|v| Prepared::new(v, None));
+        let mut m = Model::baseline();
+        refine::refit_all(&mut m, &p).expect("baseline fit");
+        let run = refine::auto(&mut m, &p, pv.as_ref(), &Options::default(), 6).expect("--auto");
+        run.steps
+            .iter()
+            .filter_map(|s| s.added.clone())
+            .collect::<Vec<_>>()
+            .join(" → ")
+    });
+    row(what, rec.len(), secs, goal, &steps);
+}
+
+fn main() {
+    diagnose_time("diagnose, 12 k samples", &long_record(42, 12.0, 1), 0.15);
+    diagnose_time("diagnose, 10⁵ samples", &long_record(42, 20.0, 5), 1.0);
+    let emps = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/emps");
+    if emps.join("DATA_EMPS.csv").exists() {
+        let mut cols = Columns::new("vir_V", "qm_m");
+        cols.time = "t_s".into();
+        cols.input_gain = 35.15065188248547;
+        let est = data::load(&emps.join("DATA_EMPS.csv"), &cols).expect("EMPS");
+        let val = data::load(&emps.join("DATA_EMPS_PULSES.csv"), &cols).expect("EMPS pulses");
+        auto_time("--auto, EMPS (validated)", &est, Some(&val), 5.0);
+    } else {
+        println!("--auto, EMPS: SKIPPED ({} not found)", emps.display());
+    }
+    let dir = std::env::temp_dir().join(format!("jointlab-speed-{}", std::process::id()));
+    let preset = "whoi-cable-30";
+    hil_host::cli::run(hil_host::cli::Cli::parse_from([
+        "hil-host",
+        "demo",
+        "--scenario",
+        "identify",
+        "--preset",
+        preset,
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap_or("."),
+    ]))
+    .expect("identify run");
+    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
+    let hil = data::load(&dir.join(format!("demo-identify-{preset}.csv")), &cols).expect("HIL");
+    auto_time("--auto, HIL identify record", &hil, None, 10.0);
+    std::fs::remove_dir_all(&dir).ok();
+}

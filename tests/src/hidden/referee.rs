@@ -1,0 +1,213 @@
+//! The referee: how strong a hidden effect is (ρ), and the noise floor a refit is judged
+//! against, from the truth alone — its noise-free signals and the noise it added — never
+//! from the workbench's own fits, and with none of its code.
+//!
+//! Both are measured in the band the workbench is told to judge its residual in: a
+//! zero-phase (forward–backward) 4th-order Butterworth low-pass at the trial's cut-off, the
+//! differentiator the workbench documents. It is implemented here afresh, in the frequency
+//! domain: the bilinear Butterworth's amplitude after a forward and a backward pass is
+//! 1/(1 + (tan(πf)/tan(πf_c))⁸), f in cycles per sample.
+//!
+//! * **Floor**: what a perfect model leaves — the input's noise and the encoder's error (the
+//!   logged minus the true position) through the inertia's second difference, low-passed:
+//!   `RMS(L·(n_u + J·D²·n_q))` over the record's interior.
+//! * **Strength ρ**: the RMS of what the *start model* (rigid inertia + viscous friction, and
+//!   Coulomb friction when the hidden effect is Stribeck) cannot explain of the noise-free
+//!   joint, over the floor. It is fitted here by least squares on the truth's fine grid —
+//!   the held command and the true motor position at every integration sub-step, so no
+//!   sampling or hold convention enters it.
+
+use nalgebra::{DMatrix, DVector};
+use rustfft::{num_complex::Complex64, FftPlanner};
+
+use super::record::TruthRecord;
+
+/// Fraction of a record dropped at each end (and at least four cut-off periods): the
+/// low-pass rings at the ends, and the workbench drops its own edges too.
+const EDGE_FRACTION: f64 = 0.05;
+
+/// Amplitude response of the zero-phase low-pass at `f` cycles/sample for a cut-off `fc`
+/// (cycles/sample).
+fn lowpass(f: f64, fc: f64) -> f64 {
+    let f = f.abs().min(0.499_999);
+    let r = (std::f64::consts::PI * f).tan() / (std::f64::consts::PI * fc).tan();
+    1.0 / (1.0 + r.powi(8))
+}
+
+/// Frequency (cycles/sample) of FFT bin `k` of `n`.
+fn bin(k: usize, n: usize) -> f64 {
+    let k = k as f64;
+    let n = n as f64;
+    if k <= n / 2.0 {
+        k / n
+    } else {
+        k / n - 1.0
+    }
+}
+
+/// `x` through the frequency response `h(f)` (f in cycles/sample), circularly: the ends are
+/// dropped by the callers.
+fn filter(x: &[f64], h: impl Fn(f64) -> Complex64) -> Vec<f64> {
+    let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut planner = FftPlanner::new();
+    let mut buf: Vec<Complex64> = x.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+    planner.plan_fft_forward(n).process(&mut buf);
+    for (k, c) in buf.iter_mut().enumerate() {
+        *c *= h(bin(k, n));
+    }
+    planner.plan_fft_inverse(n).process(&mut buf);
+    buf.iter().map(|c| c.re / n as f64).collect()
+}
+
+/// Interior of a record of `n` samples for a cut-off `fc` cycles/sample.
+fn interior(n: usize, fc: f64) -> std::ops::Range<usize> {
+    let edge = ((EDGE_FRACTION * n as f64) as usize).max((4.0 / fc).ceil() as usize);
+    edge.min(n / 2)..n.saturating_sub(edge).max(n / 2)
+}
+
+fn rms(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// The noise floor of `rec`'s equation error at the cut-off `cutoff_hz`.
+pub fn floor(rec: &TruthRecord, cutoff_hz: f64) -> f64 {
+    let fc = cutoff_hz * rec.dt;
+    let dt2 = rec.dt * rec.dt;
+    let nq: Vec<f64> = rec
+        .position
+        .iter()
+        .zip(&rec.position_true)
+        .map(|(m, t)| m - t)
+        .collect();
+    // L·n_u + J·L·D²·n_q, D² the second difference: −4 sin²(πf)/dt² (the sign is immaterial
+    // for the RMS of independent noises, kept for the exact sum).
+    let lu = filter(&rec.input_noise, |f| Complex64::new(lowpass(f, fc), 0.0));
+    let lq = filter(&nq, |f| {
+        let s = (std::f64::consts::PI * f).sin();
+        Complex64::new(lowpass(f, fc) * 4.0 * s * s / dt2, 0.0)
+    });
+    let r: Vec<f64> = lu
+        .iter()
+        .zip(&lq)
+        .map(|(u, q)| u + rec.inertia * q)
+        .collect();
+    rms(&r[interior(r.len(), fc)])
+}
+
+/// RMS of what the start model cannot explain of `rec`'s noise-free joint (see the module
+/// docs), at the cut-off `cutoff_hz`; `coulomb` adds the start model's Coulomb friction.
+pub fn excess(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
+    let h = rec.fine_dt;
+    let n = rec.fine_position.len().min(rec.fine_command.len());
+    if n < 16 || h <= 0.0 {
+        return f64::NAN;
+    }
+    let fc = cutoff_hz * h;
+    // Position minus the line through its ends: periodic enough for the FFT's derivatives;
+    // the line's own derivative (a constant velocity) is added back.
+    let x = &rec.fine_position[..n];
+    let slope = (x[n - 1] - x[0]) / ((n - 1) as f64 * h);
+    let detrended: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v - x[0] - slope * i as f64 * h)
+        .collect();
+    let w = |f: f64| std::f64::consts::TAU * f / h;
+    let v: Vec<f64> = filter(&detrended, |f| Complex64::new(0.0, w(f) * lowpass(f, fc)))
+        .into_iter()
+        .map(|v| v + slope)
+        .collect();
+    let a = filter(&detrended, |f| {
+        Complex64::new(-w(f) * w(f) * lowpass(f, fc), 0.0)
+    });
+    let u = filter(&rec.fine_command[..n], |f| {
+        Complex64::new(lowpass(f, fc), 0.0)
+    });
+    let mut cols = vec![a, v.clone()];
+    if coulomb {
+        // The start model's Coulomb column: the sign of the true velocity, band-limited.
+        let raw_v: Vec<f64> = filter(&detrended, |f| Complex64::new(0.0, w(f)))
+            .into_iter()
+            .map(|v| (v + slope).signum())
+            .collect();
+        cols.push(filter(&raw_v, |f| Complex64::new(lowpass(f, fc), 0.0)));
+    }
+    // Least squares on the interior, every sub-step (the band is far below the fine rate).
+    let keep = interior(n, fc);
+    let m = keep.len();
+    let p = cols.len();
+    let xm = DMatrix::from_fn(m, p, |i, j| cols[j][keep.start + i]);
+    let y = DVector::from_iterator(m, u[keep.clone()].iter().copied());
+    let Ok(theta) = xm.clone().svd(true, true).solve(&y, 1e-12) else {
+        return f64::NAN;
+    };
+    let r = y - xm * theta;
+    (r.norm_squared() / m as f64).sqrt()
+}
+
+/// Strength ρ of `rec`'s hidden effects: [`excess`] over [`floor`].
+pub fn rho(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
+    excess(rec, cutoff_hz, coulomb) / floor(rec, cutoff_hz)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rigid joint driven by a smooth torque leaves no excess; white input noise of σ
+    /// leaves a floor of σ times the low-pass's noise gain (√(2·f_c·∫…) ≈ √(2f_c) for a
+    /// sharp filter).
+    #[test]
+    fn rigid_joint_has_no_excess_and_white_noise_its_band_share() {
+        let (dt, sub, n) = (1e-3, 10, 8000);
+        let h = dt / sub as f64;
+        let (j, b) = (0.01, 0.05);
+        let m = n * sub;
+        // x(t) = sin(2πt) + 0.3 sin(2π·3.1t): u = J·ẍ + b·ẋ exactly.
+        let (w1, w2) = (std::f64::consts::TAU, std::f64::consts::TAU * 3.1);
+        let t = |i: usize| i as f64 * h;
+        let x: Vec<f64> = (0..m)
+            .map(|i| (w1 * t(i)).sin() + 0.3 * (w2 * t(i)).sin())
+            .collect();
+        let u: Vec<f64> = (0..m)
+            .map(|i| {
+                let a = -w1 * w1 * (w1 * t(i)).sin() - 0.3 * w2 * w2 * (w2 * t(i)).sin();
+                let v = w1 * (w1 * t(i)).cos() + 0.3 * w2 * (w2 * t(i)).cos();
+                j * a + b * v
+            })
+            .collect();
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let noise: Vec<f64> = (0..n)
+            .map(|_| 0.01 * (rng.random::<f64>() - 0.5) * 12f64.sqrt())
+            .collect();
+        let rec = TruthRecord {
+            dt,
+            time: (0..n).map(|k| k as f64 * dt).collect(),
+            input: vec![0.0; n],
+            position: (0..n).map(|k| x[k * sub]).collect(),
+            load_position: Vec::new(),
+            input_noise: noise.clone(),
+            position_true: (0..n).map(|k| x[k * sub]).collect(),
+            fine_dt: h,
+            fine_command: u,
+            fine_position: x,
+            inertia: j,
+        };
+        let fl = floor(&rec, 40.0);
+        let band = (2.0 * 40.0 * dt).sqrt() * rms(&noise);
+        assert!((fl / band - 1.0).abs() < 0.25, "floor {fl} vs {band}");
+        let ex = excess(&rec, 40.0, false);
+        assert!(ex < 1e-3 * rms(&rec.fine_command), "excess {ex}");
+        // A constant offset torque is excess.
+        let mut off = rec.clone();
+        off.fine_command.iter_mut().for_each(|u| *u += 0.05);
+        assert!(excess(&off, 40.0, false) > 0.01);
+    }
+}
