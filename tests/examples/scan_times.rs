@@ -32,6 +32,26 @@ fn main() {
             r.map(|x| x.1)
         );
     }
+    let x: Vec<f64> = p.position.clone();
+    let t0 = Instant::now();
+    for _ in 0..100 {
+        std::hint::black_box(sim_plant::effects::signal::filtfilt(&x, 100.0, 1000.0));
+    }
+    println!("filtfilt 12k: {:.3} ms", 10.0 * t0.elapsed().as_secs_f64());
+    let t = p.trajectory();
+    let sh = sim_plant::effects::shape_grid(EffectKind::Ripple, &t)[10].clone();
+    let t0 = Instant::now();
+    for _ in 0..100 {
+        std::hint::black_box(residual::candidate_columns_on(EffectKind::Ripple, &t, &sh));
+    }
+    println!(
+        "ripple columns: {:.3} ms",
+        10.0 * t0.elapsed().as_secs_f64()
+    );
+    let t0 = Instant::now();
+    let refine = sim_plant::effects::refine_grid(EffectKind::Ripple, &t, &sh);
+    println!("ripple refine grid {} shapes", refine.len());
+    let _ = t0;
     let t0 = Instant::now();
     let dg = hil_host::workbench::diagnose::diagnose(&m, &p, &Default::default());
     println!(
@@ -40,3 +60,6 @@ fn main() {
         dg.verdict.text
     );
 }
+
+#[allow(dead_code)]
+fn micro() {}

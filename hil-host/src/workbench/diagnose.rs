@@ -241,8 +241,9 @@ fn search(
     // Where physics fixes the sign of the first amplitude, a shape whose fit has the wrong
     // sign explains nothing (the same rule as the test below), so the search does not settle
     // on it and hide an admissible shape.
+    use rayon::prelude::*;
     let sign = kind.admissible_sign();
-    shape_search(kind, t, |s| {
+    let score = |s: &Shape| {
         let z = residual::candidate_columns_on(kind, t, s);
         if z.is_empty() {
             return None;
@@ -252,7 +253,8 @@ fn search(
             Some(sg) if first * sg <= 0.0 => 0.0,
             _ => dr,
         })
-    })
+    };
+    shape_search(kind, t, |batch| batch.par_iter().map(score).collect())
 }
 
 /// Expected noise terms of one candidate column (see [`motion_form_err`]): its product with
@@ -529,7 +531,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     // Tested, and explain nothing: fitted with the unphysical sign at every shape (Coulomb
     // friction that would push the motion), or spanned by the model already.
     let mut nothing: Vec<Scan> = Vec::new();
-    // The shape scans are independent: run them on the available cores.
+    // The shape scans are independent: run them on the worker pool.
     let traj = p.trajectory();
     let kinds: Vec<EffectKind> = EffectKind::ALL
         .into_iter()
@@ -542,27 +544,14 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             None => true,
         })
         .collect();
-    let workers = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, kinds.len().max(1));
-    let mut scanned: Vec<(usize, Option<Scan>)> = std::thread::scope(|sc| {
-        let hs: Vec<_> = (0..workers)
-            .map(|w| {
-                let (kinds, g0i) = (&kinds, &g0i);
-                sc.spawn(move || {
-                    (w..kinds.len())
-                        .step_by(workers)
-                        .map(|i| (i, scan(kinds[i], p, x0, g0i, e, rss)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .flat_map(|h| h.join().expect("scan worker"))
+    let scanned: Vec<(usize, Option<Scan>)> = {
+        use rayon::prelude::*;
+        kinds
+            .par_iter()
+            .enumerate()
+            .map(|(i, &k)| (i, scan(k, p, x0, &g0i, e, rss)))
             .collect()
-    });
-    scanned.sort_by_key(|(i, _)| *i);
+    };
     for (i, sc) in scanned {
         let kind = kinds[i];
         match sc {

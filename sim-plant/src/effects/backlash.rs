@@ -285,16 +285,18 @@ pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
         vec![4.0, 6.3, 10.0, 0.0]
     };
     let ks = if traj.load().is_some() { 0..=0 } else { -6..=6 };
-    let mut out = Vec::new();
-    for &tau in &taus {
-        for k in ks.clone() {
-            out.push(Shape {
-                backlash_width: b0 * 1.08f64.powi(k),
-                backlash_load_time: tau,
-                ..Shape::default()
-            });
-        }
-    }
+    // A cross through the best grid shape, not the whole rectangle: the widths at its τ and
+    // the τ's at its width (the refit then searches both jointly).
+    let shape = |b: f64, tau: f64| Shape {
+        backlash_width: b,
+        backlash_load_time: tau,
+        ..Shape::default()
+    };
+    let mut out: Vec<Shape> = ks
+        .filter(|&k| k != 0)
+        .map(|k| shape(b0 * 1.08f64.powi(k), t0))
+        .collect();
+    out.extend(taus.iter().filter(|&&tau| tau != t0).map(|&tau| shape(b0, tau)));
     out
 }
 

@@ -55,6 +55,18 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 
 /// Same period grid as ripple (the ratio N is not known from a trajectory; a caller who knows
 /// it sets `cogging_period = 2π/(cycles·N)` directly).
+/// Why the record rules cogging out as a candidate of its own: with its period unknown, its
+/// columns are a periodic torque in the measured position — ripple's, period for period — so
+/// a diagnosis tests the fingerprint once, as ripple, and the verdict's period tells which
+/// (a rotor-angle period of 2π/cycles, an output one of 2π/(cycles·N) at the motor). With
+/// the period known (`Shape::cogging_period`) a model still holds and fits it.
+pub fn ruled_out(_traj: &Trajectory) -> Option<&'static str> {
+    Some(
+        "the same fingerprint as ripple (a torque periodic in the measured position) while \
+         its period is unknown: tested as ripple, whose period tells which",
+    )
+}
+
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     super::ripple::periods(traj)
         .into_iter()

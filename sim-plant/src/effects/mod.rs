@@ -462,11 +462,13 @@ pub fn initial_state(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> Vec<
 }
 
 /// Why the record itself rules `kind` out, if it does (then it is not a candidate): a load
-/// position whose deflection shows no gap rules out a backlash (`backlash::ruled_out`).
+/// position whose deflection shows no gap rules out a backlash (`backlash::ruled_out`);
+/// cogging of unknown period is ripple's fingerprint, tested once as ripple.
 /// `None` for the other effects and for records without such evidence.
 pub fn ruled_out(kind: EffectKind, traj: &Trajectory) -> Option<&'static str> {
     match kind {
         EffectKind::Backlash => backlash::ruled_out(traj),
+        EffectKind::Cogging => cogging::ruled_out(traj),
         _ => None,
     }
 }
@@ -483,30 +485,30 @@ pub fn resolved(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> bool {
 }
 
 /// Best shape of `kind` by `score` (higher is better; `None` = not testable at that shape):
-/// scans [`shape_grid`], then [`refine_grid`] around the best grid point. Returns the best
+/// scans [`shape_grid`], then [`refine_grid`] around the best grid point. `score` rates a
+/// batch of shapes at once (the caller may spread a batch over threads). Returns the best
 /// shape, its score and the number of shapes scored (the search's multiplicity).
 pub fn shape_search(
     kind: EffectKind,
     traj: &Trajectory,
-    mut score: impl FnMut(&Shape) -> Option<f64>,
+    mut score: impl FnMut(&[Shape]) -> Vec<Option<f64>>,
 ) -> Option<(Shape, f64, usize)> {
     let mut best: Option<(Shape, f64)> = None;
     let mut tried = 0;
-    let mut consider = |s: Shape, best: &mut Option<(Shape, f64)>| {
-        tried += 1;
-        if let Some(v) = score(&s) {
-            if best.as_ref().is_none_or(|b| v > b.1) {
-                *best = Some((s, v));
+    let mut consider = |batch: Vec<Shape>, best: &mut Option<(Shape, f64)>| {
+        tried += batch.len();
+        let scores = score(&batch);
+        for (s, v) in batch.into_iter().zip(scores) {
+            if let Some(v) = v {
+                if best.as_ref().is_none_or(|b| v > b.1) {
+                    *best = Some((s, v));
+                }
             }
         }
     };
-    for s in shape_grid(kind, traj) {
-        consider(s, &mut best);
-    }
+    consider(shape_grid(kind, traj), &mut best);
     if let Some((b, _)) = best.clone() {
-        for s in refine_grid(kind, traj, &b) {
-            consider(s, &mut best);
-        }
+        consider(refine_grid(kind, traj, &b), &mut best);
     }
     best.map(|(s, v)| (s, v, tried))
 }

@@ -202,18 +202,12 @@ pub fn refit_each_start(model: &Model, p: &Prepared) -> Vec<(Model, Result<(), f
     })
 }
 
-/// `f` of each item, one thread each, the results in the items' order — the order, not which
-/// thread finishes first, decides whatever the caller picks among them, so a parallel run
-/// gives what a sequential one would. (The refits this runs are long and independent; a
-/// panic in one is passed on.)
-fn each_on_a_thread<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let f = &f;
-    std::thread::scope(|sc| {
-        let hs: Vec<_> = items.iter().map(|x| sc.spawn(move || f(x))).collect();
-        hs.into_iter()
-            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
-    })
+/// `f` of each item on the worker pool, the results in the items' order — the order, not
+/// which worker finishes first, decides whatever the caller picks among them, so a parallel
+/// run gives what a sequential one would.
+fn each_on_a_thread<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync + Send) -> Vec<R> {
+    use rayon::prelude::*;
+    items.par_iter().map(f).collect()
 }
 
 /// [`refit_all`] from one start of the Stribeck searches.

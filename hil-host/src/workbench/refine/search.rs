@@ -173,18 +173,10 @@ fn periodogram_peaks(
         }
         a * a + b * b
     };
-    let half = periods.len() / 2;
-    let pw: Vec<f64> = std::thread::scope(|sc| {
-        let h = sc.spawn(|| {
-            periods[half..]
-                .iter()
-                .map(|&x| power(x))
-                .collect::<Vec<_>>()
-        });
-        let mut v: Vec<f64> = periods[..half].iter().map(|&x| power(x)).collect();
-        v.extend(h.join().expect("periodogram worker"));
-        v
-    });
+    let pw: Vec<f64> = {
+        use rayon::prelude::*;
+        periods.par_iter().map(|&x| power(x)).collect()
+    };
     let mut peaks: Vec<(f64, f64)> = (1..pw.len().saturating_sub(1))
         .filter(|&i| pw[i] >= pw[i - 1] && pw[i] >= pw[i + 1])
         .map(|i| (pw[i], periods[i]))

@@ -68,26 +68,13 @@ pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f
 
 /// Regressor columns of every parameter of a model, in [`Model::params`] order.
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
+    use rayon::prelude::*;
     let mut cols = vec![p.acceleration.clone()];
-    let per: Vec<Vec<Vec<f64>>> = std::thread::scope(|sc| {
-        let hs: Vec<_> = model
-            .effects
-            .iter()
-            .map(|e| {
-                if filtered(e.kind) && model.effects.len() > 1 {
-                    Err(sc.spawn(move || model_columns(e.kind, p, &e.shape)))
-                } else {
-                    Ok(e)
-                }
-            })
-            .collect();
-        hs.into_iter()
-            .map(|h| match h {
-                Ok(e) => model_columns(e.kind, p, &e.shape),
-                Err(h) => h.join().expect("column worker"),
-            })
-            .collect()
-    });
+    let per: Vec<Vec<Vec<f64>>> = model
+        .effects
+        .par_iter()
+        .map(|e| model_columns(e.kind, p, &e.shape))
+        .collect();
     for (e, mut c) in model.effects.iter().zip(per) {
         c.resize(e.params.len(), vec![0.0; p.len()]);
         cols.extend(c);
