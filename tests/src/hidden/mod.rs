@@ -17,6 +17,7 @@
 //! * **Noise floor** for the refit check = the baseline's RMS on the validation twin (fitted on
 //!   the estimation twin): the best a correct model can do on that record.
 
+pub mod lab;
 pub mod record;
 pub mod truth;
 
