@@ -126,18 +126,41 @@ impl PlantNode {
         }
     }
 
-    /// Integrates one period with the command of this tick held (zero if none came: a real
-    /// power stage without a command drives nothing), then samples the sensors.
-    pub fn advance(&mut self) {
-        let tau = match self.cmd {
+    /// The torque this tick's command holds (N·m at the motor): zero if none came (a real
+    /// power stage without a command drives nothing; counted as missing) or it does not drive.
+    fn held_torque(&mut self) -> f64 {
+        match self.cmd {
             Some(a) if a.drive => f64::from(a.torque) * MOTOR_TORQUE_LSB,
             Some(_) => 0.0,
             None => {
                 self.missing += 1;
                 0.0
             }
-        };
+        }
+    }
+
+    /// Integrates one period with the command of this tick held, then samples the sensors.
+    pub fn advance(&mut self) {
+        let tau = self.held_torque();
         self.plant.advance(tau, self.period_s);
+        self.sensors = self.plant.read_sensors();
+        self.tick += 1;
+    }
+
+    /// [`PlantNode::advance`] in `parts` equal sub-intervals, calling `before(j, plant)` before
+    /// part j: the true joint inside the hold, for a recording that logs it between two sensor
+    /// samples (mid-hold positions, a fine grid). With `parts` = the plant's substeps per period
+    /// (or a divisor of them) every part is whole substeps of the same length: the same
+    /// integrator steps as one `advance`, only the half-drifts it merges across substep
+    /// boundaries are taken one by one (a difference in rounding, not in physics).
+    pub fn advance_in_parts(&mut self, parts: usize, mut before: impl FnMut(usize, &Plant)) {
+        let tau = self.held_torque();
+        let parts = parts.max(1);
+        let h = self.period_s / parts as f64;
+        for j in 0..parts {
+            before(j, &self.plant);
+            self.plant.advance(tau, h);
+        }
         self.sensors = self.plant.read_sensors();
         self.tick += 1;
     }

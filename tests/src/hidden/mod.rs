@@ -17,6 +17,7 @@
 //! * **What counts**: a draw whose truth diverges does not count (the truth says so, not the
 //!   workbench); every other trial does, and a workbench error or panic is a failure.
 
+pub mod lab;
 pub mod physicist;
 pub mod record;
 pub mod referee;
@@ -38,7 +39,11 @@ pub use record::{Conditions, Excitation, Family, Logging, Truth, TruthRecord, Wh
 
 /// Every truth, in report order.
 pub fn truths() -> Vec<Box<dyn Truth>> {
-    vec![Box::new(rk4::Rk4), Box::new(physicist::VerletKarnopp)]
+    vec![
+        Box::new(rk4::Rk4),
+        Box::new(physicist::VerletKarnopp),
+        Box::new(lab::LabTruth),
+    ]
 }
 
 /// The truth called `name`.
