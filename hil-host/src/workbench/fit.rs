@@ -42,6 +42,12 @@ impl LsFit {
     /// Wald test that the parameters `idx` are all zero, referred to `F(q, m−q)` with the
     /// Hotelling correction for `m` batch means. Returns (F statistic, p-value).
     pub fn wald(&self, idx: &[usize]) -> (f64, f64) {
+        self.wald_scaled(idx, 1.0)
+    }
+
+    /// [`LsFit::wald`] with the statistic scaled by `scale` (the share of the fit's explained
+    /// energy a correction keeps) before its p-value is taken.
+    pub fn wald_scaled(&self, idx: &[usize], scale: f64) -> (f64, f64) {
         let q = idx.len();
         let m = self.blocks;
         if q == 0 || m <= q {
@@ -59,7 +65,7 @@ impl LsFit {
                 Err(_) => 0.0,
             },
         };
-        let f = w.max(0.0) * (m - q) as f64 / ((m - 1) as f64 * q as f64);
+        let f = scale * w.max(0.0) * (m - q) as f64 / ((m - 1) as f64 * q as f64);
         (f, stats::f_sf(f, q as f64, (m - q) as f64))
     }
 }

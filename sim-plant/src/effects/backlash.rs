@@ -127,6 +127,18 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     vec![deflection_column(&d, tau, traj.dt)]
 }
 
+/// What a motor encoder alone tells of a transmission with a gap and a spring: the spring's
+/// mode is its larger part of the residual and comes first (`compliance`), the gap then as
+/// the next step (`backlash`); their widths, stiffness and the load's inertia trade off
+/// against each other, and the light motor's chatter inside the gap is faster than the
+/// differentiator's band.
+pub const MOTOR_ONLY: &str = "from the motor encoder alone a transmission's spring and a gap \
+     in it are told apart only roughly: the spring's mode shows first (compliance), a gap as \
+     the next step (backlash, in `--auto`); the gap's width, the stiffness and the load's \
+     inertia are identified together, not each on its own, and the motor's chatter inside \
+     the gap is above the differentiator's band — a load-side encoder (--load-output) \
+     measures the deflection itself";
+
 /// Why the record rules a backlash out, if it does: it has a load position whose deflection
 /// shows no gap ([`shows_gap`]). The measured-deflection column (see [`fingerprint`]) is
 /// Newton's law for any motor–load pair, so without this test it explains a compliant

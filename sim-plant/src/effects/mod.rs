@@ -473,6 +473,19 @@ pub fn ruled_out(kind: EffectKind, traj: &Trajectory) -> Option<&'static str> {
     }
 }
 
+/// What the record can and cannot identify of `kind` when it is the verdict, if that needs
+/// saying: a gap and a transmission spring seen through the motor encoder alone
+/// (`backlash::motor_only`). `None` for the other effects and for records that measure the
+/// load too.
+pub fn identifiability(kind: EffectKind, traj: &Trajectory) -> Option<&'static str> {
+    match kind {
+        EffectKind::Backlash | EffectKind::Compliance if traj.load().is_none() => {
+            Some(backlash::MOTOR_ONLY)
+        }
+        _ => None,
+    }
+}
+
 /// Whether the record resolves `shape` of `kind`: false when a shape search ends at the edge
 /// of what the record can identify — a compliance mode at or above the top of its grid (above
 /// the residual's bandwidth only `J2/(J1·ω²)` is identifiable, not the mode, and a stiff

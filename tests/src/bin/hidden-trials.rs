@@ -286,7 +286,7 @@ fn main() {
                 }
             }
             let k = count.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            if k % 25 == 0 {
+            if k.is_multiple_of(25) {
                 eprintln!("{k}/{} ({:.0} s)", todo.len(), t0.elapsed().as_secs_f64());
             }
             d

@@ -469,6 +469,19 @@ fn drive(jt: &Joint, seed: u64, which: Which, kind: Excitation, rows: usize) -> 
     }
 }
 
+/// The compliance family's linear spring referred to the motor (stiffness, damping), or none
+/// (a rigid transmission, or backlash's contact spring, which acts only in contact).
+fn motor_side_spring(jt: &Joint, effects: &[(Family, f64)]) -> Option<(f64, f64)> {
+    if effects.iter().any(|(f, a)| *f == Family::Backlash && *a > 0.0) {
+        return None;
+    }
+    let (_, a) = effects.iter().find(|(f, a)| *f == Family::Compliance && *a > 0.0)?;
+    let hz = (60.0 / a.sqrt()).clamp(6.0, 5000.0);
+    let jr = jt.i1 * jt.j2 / (jt.i1 + jt.j2);
+    let w = TAU * hz;
+    Some((jr * w * w, 2.0 * jt.damping_ratio * jr * w))
+}
+
 /// Linear transmission spring with its coupled mode at `hz` (ζ of the table).
 fn spring(jt: &Joint, hz: f64) -> compliance::Params {
     let n2 = jt.n * jt.n;
@@ -583,6 +596,8 @@ struct Log {
     position: Vec<f64>,
     load_position: Vec<f64>,
     position_true: Vec<f64>,
+    /// True output angle at the logged instants, referred to the motor (×N).
+    load_position_true: Vec<f64>,
     fine_dt: f64,
     fine_command: Vec<f64>,
     fine_position: Vec<f64>,
@@ -770,6 +785,7 @@ fn run(
                     .map(|c| f64::from(c) * rad * n)
                     .unwrap_or(f64::NAN);
                 let zoh = (last.motor_pos_rad, zoh_load);
+                let zoh_output = plant.state().output_angle * n;
                 let mut at_mid = None;
                 let fine = &mut log.fine_position;
                 plant.advance_in_parts(count, |j, p| {
@@ -788,11 +804,13 @@ fn run(
                         log.load_position
                             .push(f64::from(encoder_counts(s.output_angle, cpr)) * rad * n);
                         log.position_true.push(s.motor_angle);
+                        log.load_position_true.push(s.output_angle * n);
                     }
                     _ => {
                         log.position.push(zoh.0);
                         log.load_position.push(zoh.1);
                         log.position_true.push(log.fine_position[r * count]);
+                        log.load_position_true.push(zoh_output);
                     }
                 }
             }
@@ -858,6 +876,9 @@ impl Truth for LabTruth {
             fine_command: log.fine_command,
             fine_position: log.fine_position,
             inertia: jt.inertia(),
+            inertia_load: jt.j2,
+            spring: motor_side_spring(&jt, effects),
+            load_position_true: log.load_position_true,
         })
     }
 

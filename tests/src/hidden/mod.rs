@@ -127,6 +127,8 @@ pub struct Trial {
     pub floor_est: f64,
     /// Noise floor of the validation record.
     pub floor_val: f64,
+    /// Noise floor of the validation record for a model that reads the load encoder too.
+    pub floor_val_load: f64,
 }
 
 impl Trial {
@@ -195,8 +197,10 @@ pub fn generate_in(
     let val = rec(&effects, Which::Validation)?;
     let floor_est = referee::floor(&est, fc);
     let floor_val = referee::floor(&val, fc);
+    let floor_val_load = referee::floor_with_load(&val, fc);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
-    if !families.is_empty() && !(rho.is_finite() && rho <= 20.0 * target_rho.max(1.0)) {
+    let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
+    if !families.is_empty() && !in_reach {
         return Err(Skip::Strength(rho));
     }
     Ok(Trial {
@@ -210,6 +214,7 @@ pub fn generate_in(
         rho,
         floor_est,
         floor_val,
+        floor_val_load,
     })
 }
 
@@ -280,6 +285,14 @@ pub struct Outcome {
     pub auto_added: Vec<String>,
     /// A workbench error or panic: the trial failed.
     pub error: Option<String>,
+    /// The start model's residual RMS on the estimation record, the workbench's estimate of
+    /// its noise floor, and the referee's floor (diagnostics of the floor estimate).
+    #[serde(default)]
+    pub floors: Option<[f64; 3]>,
+    /// Backlash trials whose rank 1 is compliance: whether `--auto` then added backlash as
+    /// the step after compliance (a gap behind a spring, from the motor encoder alone).
+    #[serde(default)]
+    pub backlash_after_compliance: Option<bool>,
 }
 
 impl Outcome {
@@ -338,6 +351,7 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     let d = diagnose(&model, &pe, &opts);
     out.top = d.candidates.first().map(|c| c.effect.clone());
     out.verdict = d.verdict.add.clone();
+    out.floors = Some([d.baseline.rms, d.baseline.noise_floor_rms, t.floor_est]);
     let debug = std::env::var_os("HIDDEN_DEBUG").is_some();
     if debug {
         eprintln!(
@@ -345,6 +359,15 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
             t.rho,
             t.floor_est,
             d.to_text()
+        );
+    }
+    if families == [Family::Backlash] && out.top.as_deref() == Some("compliance") {
+        let mut m = model.clone();
+        let run = refine::auto(&mut m, &pe, None, &opts, 3).map_err(|e| format!("--auto: {e}"))?;
+        let added: Vec<Option<String>> = run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
+        out.backlash_after_compliance = Some(
+            added.first() == Some(&Some("compliance".into()))
+                && added.get(1) == Some(&Some("backlash".into())),
         );
     }
     match families.as_slice() {
@@ -360,13 +383,14 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
             let r = refine::fit_add(&mut m, &pe, Some(kind), Some(&pv))
                 .map_err(|e| format!("fit --add {}: {e}", f.name()))?;
             let v = r.after_validation.ok_or("fit gave no validation score")?;
-            out.val_ratio = Some(v.rms / t.floor_val);
+            let floor = if load { t.floor_val_load } else { t.floor_val };
+            out.val_ratio = Some(v.rms / floor);
             if debug {
                 eprintln!(
                     "fit --add {}: estimation RMS/floor {:.3}, validation {:.3}; {:?}",
                     f.name(),
                     r.after.rms / t.floor_est,
-                    v.rms / t.floor_val,
+                    v.rms / floor,
                     r.params
                 );
             }
@@ -421,6 +445,8 @@ pub fn run(
         val_ratio: None,
         auto_added: Vec::new(),
         error: None,
+        floors: None,
+        backlash_after_compliance: None,
     };
     match catch_unwind(AssertUnwindSafe(|| judge(&t, &mut out))) {
         Ok(Ok(())) => {}

@@ -179,6 +179,13 @@ pub struct TruthRecord {
     pub fine_position: Vec<f64>,
     /// J1 + J2: the rigid limit seen at the motor.
     pub inertia: f64,
+    /// J2, the load's inertia referred to the motor (J1 = `inertia` − J2).
+    pub inertia_load: f64,
+    /// A linear transmission spring (stiffness, damping, referred to the motor), when the
+    /// joint has one: it shapes how the encoder's noise reaches a correct model's residual.
+    pub spring: Option<(f64, f64)>,
+    /// True load position at the logged instants, referred to the motor (as `load_position`).
+    pub load_position_true: Vec<f64>,
 }
 
 /// A truth: deterministic in (seed, effects, conditions, which).

@@ -75,28 +75,54 @@ fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
-/// The noise floor of `rec`'s equation error at the cut-off `cutoff_hz`.
+/// The noise floor of `rec`'s equation error at the cut-off `cutoff_hz`, for a correct model
+/// of the joint seen through its motor encoder: the input's noise plus the encoder's error
+/// through the joint's inverse dynamics, J1·s² + J2·s²·G(s) with G the load's response to
+/// the motor across a linear transmission spring (1 for a rigid one: J·s²).
 pub fn floor(rec: &TruthRecord, cutoff_hz: f64) -> f64 {
+    floor_with(rec, cutoff_hz, false)
+}
+
+/// [`floor`] for a model that also reads the load encoder (a backlash fitted on the measured
+/// deflection): J1·s² on the motor encoder's error and J2·s² on the load encoder's.
+pub fn floor_with_load(rec: &TruthRecord, cutoff_hz: f64) -> f64 {
+    floor_with(rec, cutoff_hz, true)
+}
+
+fn floor_with(rec: &TruthRecord, cutoff_hz: f64, load: bool) -> f64 {
     let fc = cutoff_hz * rec.dt;
-    let dt2 = rec.dt * rec.dt;
-    let nq: Vec<f64> = rec
-        .position
-        .iter()
-        .zip(&rec.position_true)
-        .map(|(m, t)| m - t)
-        .collect();
-    // L·n_u + J·L·D²·n_q, D² the second difference: −4 sin²(πf)/dt² (the sign is immaterial
-    // for the RMS of independent noises, kept for the exact sum).
-    let lu = filter(&rec.input_noise, |f| Complex64::new(lowpass(f, fc), 0.0));
-    let lq = filter(&nq, |f| {
+    let dt = rec.dt;
+    let error = |logged: &[f64], truth: &[f64]| -> Vec<f64> {
+        logged.iter().zip(truth).map(|(m, t)| m - t).collect()
+    };
+    let nq = error(&rec.position, &rec.position_true);
+    let (j, j2) = (rec.inertia, rec.inertia_load);
+    let j1 = j - j2;
+    // D², the second difference: −4 sin²(πf)/dt²; s at the same frequency for G.
+    let d2 = |f: f64| {
         let s = (std::f64::consts::PI * f).sin();
-        Complex64::new(lowpass(f, fc) * 4.0 * s * s / dt2, 0.0)
-    });
-    let r: Vec<f64> = lu
-        .iter()
-        .zip(&lq)
-        .map(|(u, q)| u + rec.inertia * q)
-        .collect();
+        -4.0 * s * s / (dt * dt)
+    };
+    let lu = filter(&rec.input_noise, |f| Complex64::new(lowpass(f, fc), 0.0));
+    let motor_path = |f: f64| -> Complex64 {
+        let jd = if load {
+            Complex64::new(j1, 0.0)
+        } else if let Some((k, c)) = rec.spring {
+            let s = Complex64::new(0.0, std::f64::consts::TAU * f / dt);
+            let g = (s * c + k) / (s * s * j2 + s * c + k);
+            j1 + g * j2
+        } else {
+            Complex64::new(j, 0.0)
+        };
+        jd * d2(f) * lowpass(f, fc)
+    };
+    let lq = filter(&nq, motor_path);
+    let mut r: Vec<f64> = lu.iter().zip(&lq).map(|(u, q)| u - q).collect();
+    if load && rec.load_position_true.len() == rec.load_position.len() {
+        let nl = error(&rec.load_position, &rec.load_position_true);
+        let ll = filter(&nl, |f| Complex64::new(j2 * d2(f) * lowpass(f, fc), 0.0));
+        r.iter_mut().zip(&ll).for_each(|(x, l)| *x -= l);
+    }
     rms(&r[interior(r.len(), fc)])
 }
 
@@ -199,6 +225,9 @@ mod tests {
             fine_command: u,
             fine_position: x,
             inertia: j,
+            inertia_load: 0.0,
+            spring: None,
+            load_position_true: Vec::new(),
         };
         let fl = floor(&rec, 40.0);
         let band = (2.0 * 40.0 * dt).sqrt() * rms(&noise);

@@ -124,7 +124,7 @@ fn drive(seed: u64, which: Which, cond: &Conditions, j: f64, b: f64) -> Drive {
         Which::Estimation => 1,
         Which::Validation => 2,
     };
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (stream << 56) ^ 0x5EED_0F_D21E);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (stream << 56) ^ 0x005E_ED0F_D21E);
     let dt = cond.dt;
     let n = samples(cond) + 4;
     let dn = Normal::new(0.0, 1.0).expect("unit normal");
@@ -328,7 +328,7 @@ impl Truth for Rk4 {
             0.0
         }
         .max(RIGID_MODE_HZ);
-        let sub = (((dt * fastest * 20.0).ceil() as usize).max(10) + 1) / 2 * 2;
+        let sub = ((dt * fastest * 20.0).ceil() as usize).max(10).div_ceil(2) * 2;
         let mut ctl = Loop {
             d: &drv,
             dt,
@@ -377,6 +377,7 @@ impl Truth for Rk4 {
         if !bounded {
             return Err("the loop diverged (|q| ≥ 50 rad, |u| ≥ 10⁶ or not finite)".into());
         }
+        let load_position_true = m.load_position.clone();
         let load_position = m
             .load_position
             .iter()
@@ -404,6 +405,10 @@ impl Truth for Rk4 {
             fine_command: m.fine_command,
             fine_position: m.fine_position,
             inertia: j,
+            inertia_load: p.j2,
+            // The dead zone's spring acts only in contact: not a linear transmission.
+            spring: (p.backlash == 0.0).then_some((p.k, p.c)),
+            load_position_true,
         })
     }
 

@@ -179,7 +179,7 @@ pub fn auto_observed(
         // With a validation record, a step must earn its place there too.
         let val = validation.map(|v| score(&fitted, v));
         if let (Some(before), Some(after)) = (steps.list.last().and_then(|s| s.validation), val) {
-            if !(after.rms < before.rms) {
+            if after.rms.partial_cmp(&before.rms) != Some(std::cmp::Ordering::Less) {
                 return Ok(AutoRun {
                     steps: steps.list,
                     last: d,
@@ -333,7 +333,7 @@ pub(super) fn choose(
         }
         let gain = (current - bic(&m, p)) / spent(c).max(1) as f64;
         // (NaN: not an improvement)
-        if !(gain > 0.0) {
+        if gain.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
         if best.as_ref().is_none_or(|x| gain > x.0) {
@@ -514,7 +514,7 @@ fn delay_probe(
     let tau = m.effects.last().map_or(0.0, |e| e.shape.delay);
     if tau > 0.0
         && err >= opts.min_err
-        && explained >= opts.min_rho * p.noise_floor
+        && explained >= opts.min_rho * p.practical_floor(r0)
         && bic(&m, p) < bic(model, p)
     {
         let text = format!(

@@ -8,7 +8,7 @@
 
 use super::control::Controller;
 use super::excite::{plan, sample_count, Plan};
-use super::joint::{Joint, State};
+use super::joint::{Coupling, Joint, State};
 use super::plant::{draw_effects, draw_plant, with_effects, Actuator, Plant};
 use super::rng::stream;
 use super::torques::dac;
@@ -172,6 +172,12 @@ impl Scenario {
             fine_command: Vec::with_capacity(n * m),
             fine_position: Vec::with_capacity(n * m),
             inertia: self.joint.total_inertia(),
+            inertia_load: self.joint.j_load,
+            spring: match self.joint.coupling {
+                Coupling::Shaft { stiffness, damping } => Some((stiffness, damping)),
+                _ => None,
+            },
+            load_position_true: Vec::new(),
         };
         let mut trace = Trace {
             reference: self.plan.r[..n].to_vec(),
@@ -247,6 +253,7 @@ impl Scenario {
                 ));
             }
         }
+        rec.load_position_true = trace.load_true.clone();
         Ok((rec, trace))
     }
 }
