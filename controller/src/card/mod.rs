@@ -22,6 +22,7 @@
 //! `FaultReaction` (configured reaction) → `Fault`, latched until `ClearFault`.
 
 pub mod config;
+pub mod node;
 pub mod si;
 pub mod store;
 
