@@ -142,7 +142,7 @@ impl Gain {
             let half = if shift == 0 {
                 0
             } else {
-                1i64 << (shift as u32 - 1)
+                1i64.wrapping_shl((shift as u32).wrapping_sub(1))
             };
             Some(Gain { mant, shift, half })
         }
@@ -273,11 +273,11 @@ impl Reciprocal {
         if d < 2 {
             return None;
         }
-        Some(Reciprocal {
-            d,
-            m: u64::MAX / d as u64,
-            m32: u32::MAX / d,
-        })
+        // d ≥ 2: the divisions cannot fail (checked only to keep the no-panic lints).
+        let (Some(m), Some(m32)) = (u64::MAX.checked_div(d as u64), u32::MAX.checked_div(d)) else {
+            return None;
+        };
+        Some(Reciprocal { d, m, m32 })
     }
 
     /// The divisor.
