@@ -1,5 +1,5 @@
 //! Host side of the QEMU images (std only): build an image, run it under
-//! `qemu-system-arm`, exchange the replay stream. Used by `tests/qemu.rs` and
+//! `qemu-system-arm`, exchange the replay stream. Used by `tests/card_replay.rs` and
 //! `benches/insn.rs`; `.ci/run` installs QEMU so CI runs them, a plain `cargo test` without
 //! QEMU prints a `SKIPPED` line instead.
 

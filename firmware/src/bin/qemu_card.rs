@@ -1,6 +1,6 @@
 //! The card loop under QEMU (mps2-an386 Cortex-M4F, microbit Cortex-M0): replays the frames
 //! of a host recording to the card and writes what the card sends, bit for bit comparable
-//! with the host card (see `firmware::stream` for the format and `tests/qemu.rs`).
+//! with the host card (see `firmware::stream` for the format and `tests/card_replay.rs`).
 //!
 //! Run from a directory holding `card-in.bin`; writes `card-out.bin` there:
 //! `qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic -semihosting-config
