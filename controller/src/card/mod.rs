@@ -510,6 +510,11 @@ impl Card {
         self.deferred = on;
     }
 
+    /// True while a build request waits to be taken.
+    pub fn build_requested(&self) -> bool {
+        self.request.is_some()
+    }
+
     /// The build waiting to run, if any (take it, run [`BuildRequest::build`] outside the
     /// control interrupt, then call [`Card::finish_build`]).
     pub fn take_build_request(&mut self) -> Option<BuildRequest> {
@@ -688,6 +693,12 @@ impl Card {
     /// its safe state, as it would on any other fault.
     pub fn bus_error(&mut self, code: i32) {
         self.enter_fault(FaultCode::BusError, code);
+    }
+
+    /// Reports that the power stage (amplifier) signalled a fault — its fault output, an
+    /// over-current, a failed write: the card goes to its safe state and latches it.
+    pub fn power_stage_fault(&mut self, status: i32) {
+        self.enter_fault(FaultCode::PowerStage, status);
     }
 
     // ---------------------------------------------------------------- time
