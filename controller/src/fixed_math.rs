@@ -341,12 +341,14 @@ pub fn round_shr(p: i64, s: u32) -> i64 {
 /// Saturate an `i64` to `i32`; the bool is true if it had to clamp.
 #[inline]
 pub fn sat_i32(x: i64) -> (i32, bool) {
-    if x > i64::from(i32::MAX) {
-        (i32::MAX, true)
-    } else if x < i64::from(i32::MIN) {
+    // One "does the high word only repeat the sign" test instead of two 64-bit compares.
+    let lo = x as i32;
+    if i64::from(lo) == x {
+        (lo, false)
+    } else if x < 0 {
         (i32::MIN, true)
     } else {
-        (x as i32, false)
+        (i32::MAX, true)
     }
 }
 

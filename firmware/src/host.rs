@@ -76,10 +76,14 @@ pub fn qemu_version() -> Option<String> {
     })
 }
 
-/// Returns true (and prints the `SKIPPED` line) when QEMU is missing.
+/// Returns true (and prints the `SKIPPED` line) when QEMU is missing. With
+/// `JOINTLAB_REQUIRE_QEMU` set (CI installs QEMU and sets it) a missing QEMU is an error.
 pub fn skip_without_qemu(what: &str) -> bool {
     match qemu_version() {
         Some(_) => false,
+        None if std::env::var_os("JOINTLAB_REQUIRE_QEMU").is_some() => {
+            panic!("{what}: qemu-system-arm not found, and JOINTLAB_REQUIRE_QEMU is set")
+        }
         None => {
             println!(
                 "SKIPPED: {what}: qemu-system-arm not found (apt-get install -y --no-install-recommends qemu-system-arm; .ci/run installs it)"
@@ -190,4 +194,125 @@ pub fn replay(machine: Machine, image: &Path, input: &[u8]) -> Result<(Vec<u8>, 
     let out = std::fs::read(dir.join("card-out.bin")).map_err(|e| e.to_string());
     let _ = std::fs::remove_dir_all(&dir);
     Ok((out?, run))
+}
+
+/// One row of the instruction-count table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InsnRow {
+    /// What was measured.
+    pub what: String,
+    /// Instructions per step (or per call) on the bench's inputs, M4 and M0.
+    pub bench: [f64; 2],
+    /// The same on small tracking errors (laws only; equal to `bench` otherwise).
+    pub tracking: [f64; 2],
+}
+
+/// Parses the `qemu-bench` output of one machine into (what, inputs, instructions).
+fn parse_bench(out: &str) -> Result<Vec<(String, String, f64)>, String> {
+    let mut per_tick = None;
+    let mut base: Vec<(String, f64)> = Vec::new();
+    let mut rows = Vec::new();
+    let num = |s: Option<&str>| -> Result<f64, String> {
+        s.and_then(|v| v.parse::<f64>().ok())
+            .ok_or_else(|| format!("bad qemu-bench line in: {out}"))
+    };
+    for l in out.lines() {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        match f.first().copied() {
+            Some("calib") => per_tick = Some(num(f.get(1).copied())? / num(f.get(2).copied())?),
+            Some(kind @ ("case" | "tick" | "build" | "commit")) => {
+                let k = per_tick.ok_or("no calibration line")?;
+                match kind {
+                    "case" => {
+                        let (case, inputs) = (
+                            f.get(1).copied().unwrap_or(""),
+                            f.get(2).copied().unwrap_or(""),
+                        );
+                        let per = num(f.get(4).copied())? * k / num(f.get(3).copied())?;
+                        if case == "Baseline" {
+                            base.push((inputs.to_string(), per));
+                        } else {
+                            let b = base
+                                .iter()
+                                .find(|(i, _)| i == inputs)
+                                .map(|x| x.1)
+                                .unwrap_or(0.0);
+                            rows.push((case.to_string(), inputs.to_string(), per - b));
+                        }
+                    }
+                    "tick" => {
+                        let n = num(f.get(1).copied())?;
+                        rows.push((
+                            "card tick (mean)".into(),
+                            String::new(),
+                            num(f.get(2).copied())? * k / n,
+                        ));
+                        rows.push((
+                            "card tick (max)".into(),
+                            String::new(),
+                            num(f.get(3).copied())? * k,
+                        ));
+                    }
+                    _ => {
+                        let n = num(f.get(1).copied())?;
+                        let what = if kind == "build" {
+                            "config::build"
+                        } else {
+                            "commit (card, while enabled)"
+                        };
+                        rows.push((what.into(), String::new(), num(f.get(2).copied())? * k / n));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    if rows.is_empty() {
+        return Err(format!("no figures in qemu-bench output: {out}"));
+    }
+    Ok(rows)
+}
+
+/// Builds and runs `qemu-bench` on both machines and returns the table.
+pub fn instruction_table() -> Result<Vec<InsnRow>, String> {
+    let mut per_machine = Vec::new();
+    for m in Machine::ALL {
+        let image = build_image(m, "qemu-bench")?;
+        let dir = std::env::temp_dir();
+        let run = run_qemu(m, &image, &dir, Duration::from_secs(120))?;
+        per_machine.push(parse_bench(&run.stdout)?);
+    }
+    let [m4, m0] = [&per_machine[0], &per_machine[1]];
+    let get = |rows: &Vec<(String, String, f64)>, what: &str, inputs: &str| {
+        rows.iter()
+            .find(|(w, i, _)| w == what && (i == inputs || i.is_empty()))
+            .map(|r| r.2)
+            .unwrap_or(f64::NAN)
+    };
+    let mut out: Vec<InsnRow> = Vec::new();
+    for (what, _, _) in m4.iter() {
+        if out.iter().any(|r| &r.what == what) {
+            continue;
+        }
+        out.push(InsnRow {
+            what: what.clone(),
+            bench: [get(m4, what, "Bench"), get(m0, what, "Bench")],
+            tracking: [get(m4, what, "Tracking"), get(m0, what, "Tracking")],
+        });
+    }
+    Ok(out)
+}
+
+/// The table as the README shows it (Markdown).
+pub fn format_table(table: &[InsnRow]) -> String {
+    let mut s = String::new();
+    s.push_str("| per step | M4 bench | M0 bench | M4 tracking | M0 tracking |\n");
+    s.push_str("|---|---:|---:|---:|---:|\n");
+    for r in table {
+        s.push_str(&format!(
+            "| {} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
+            r.what, r.bench[0], r.bench[1], r.tracking[0], r.tracking[1]
+        ));
+    }
+    s
 }

@@ -47,9 +47,9 @@ mod board {
     use embassy_executor::Spawner;
     use embassy_stm32::can::{self, Can, CanRx, CanTx};
     use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
-    use embassy_stm32::peripherals::{TIM2, TIM3};
     #[cfg(feature = "output-encoder")]
     use embassy_stm32::peripherals::TIM4;
+    use embassy_stm32::peripherals::{TIM2, TIM3};
     use embassy_stm32::time::Hertz;
     use embassy_stm32::timer::qei::Qei;
     use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm, SimplePwmChannel};
@@ -116,7 +116,9 @@ mod board {
 
     impl Board {
         fn queue(&mut self, m: &Message) {
-            let Some(node) = NodeId::new(NODE) else { return };
+            let Some(node) = NodeId::new(NODE) else {
+                return;
+            };
             if let Ok((id, data, len)) = m.to_bytes(node) {
                 if self.tx.push_back((id, len as u8, data)).is_err() {
                     self.tx_dropped = self.tx_dropped.wrapping_add(1);
@@ -138,7 +140,11 @@ mod board {
             if self.amp_fault.is_low() {
                 self.node.card_mut().power_stage_fault(1);
             }
-            let motor = Self::extend(&mut self.motor_last, &mut self.motor_counts, self.motor.count());
+            let motor = Self::extend(
+                &mut self.motor_last,
+                &mut self.motor_counts,
+                self.motor.count(),
+            );
             #[cfg(feature = "output-encoder")]
             let output_counts = Some(Self::extend(
                 &mut self.output_last,
@@ -165,7 +171,8 @@ mod board {
             };
             // The inhibit line first: a latched fault takes the amplifier off in hardware
             // whatever the PWM does next.
-            self.inhibit.set_level(if act.fault { Level::High } else { Level::Low });
+            self.inhibit
+                .set_level(if act.fault { Level::High } else { Level::Low });
             if self.stage.apply(cmd).is_err() {
                 self.inhibit.set_high();
                 self.node.card_mut().power_stage_fault(2);
@@ -336,26 +343,18 @@ mod board {
             }
         };
 
-        let motor = Qei::new(
-            p.TIM2,
-            p.PA0,
-            p.PA1,
-            Default::default(),
-        );
+        let motor = Qei::new(p.TIM2, p.PA0, p.PA1, Default::default());
         #[cfg(feature = "output-encoder")]
-        let output = Qei::new(
-            p.TIM4,
-            p.PB6,
-            p.PB7,
-            Default::default(),
-        );
+        let output = Qei::new(p.TIM4, p.PB6, p.PB7, Default::default());
 
         let mut cfg = can::CanConfigurator::new(p.FDCAN1, p.PA11, p.PA12, Irqs);
         cfg.set_bitrate(1_000_000);
         let can: Can<'static> = cfg.into_normal_mode();
         let (tx, rx, _) = can.split();
 
-        let Some(node) = NodeId::new(NODE) else { halt() };
+        let Some(node) = NodeId::new(NODE) else {
+            halt()
+        };
         let mut card = match Card::new(node) {
             Ok(c) => c,
             Err(e) => {
