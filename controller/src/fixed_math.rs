@@ -221,6 +221,18 @@ pub fn mul_u32_wide(a: u32, b: u32) -> u64 {
     }
 }
 
+/// `x · k`, exact whenever the product fits an `i64` (the callers' bounds guarantee it).
+/// One 32×32→64 multiply and one 32-bit multiply — on ARMv6-M that is far cheaper than the
+/// generic 64×64 library call an `i64` product becomes.
+#[inline]
+pub fn mul_i64_u32(x: i64, k: u32) -> i64 {
+    let lo = x as u32;
+    let hi = (x >> 32) as i32;
+    // |x·k| < 2⁶³ ⇒ |hi·k| < 2³¹: the 32-bit product is exact (two's complement mod 2³²).
+    let hk = hi.wrapping_mul(k as i32);
+    (i64::from(hk) << 32).wrapping_add(mul_u32_wide(lo, k) as i64)
+}
+
 /// `a · b` from four 16×16→32 products (the ARMv6-M path of [`mul_u32_wide`]; compiled
 /// everywhere so the host tests check it).
 #[inline]
@@ -414,7 +426,7 @@ impl LowPass {
         let u_q16 = i64::from(u).wrapping_shl(16);
         let diff = u_q16.wrapping_sub(self.y_q16);
         let a = i64::from(alpha.to_bits().min(1 << 15));
-        let inc = round_shr(diff.wrapping_mul(a), 15);
+        let inc = round_shr(mul_i64_u32(diff, a as u32), 15);
         self.y_q16 = self.y_q16.wrapping_add(inc);
         sat_i32(round_shr(self.y_q16, 16)).0
     }
@@ -464,6 +476,19 @@ mod tests {
             let (ua, ub) = (a as u32, b as u32);
             assert_eq!(mul_u32_wide(ua, ub), u64::from(ua) * u64::from(ub));
             assert_eq!(mul_u32_by_halves(ua, ub), u64::from(ua) * u64::from(ub));
+        }
+        for (x, k) in [
+            (-(1i64 << 48), 1u32 << 14),
+            ((1 << 46) - 3, 65535),
+            (-5, u32::MAX),
+            (i64::from(i32::MIN), 7),
+            (0x1_2345_6789, 0x7FFF),
+        ] {
+            assert_eq!(
+                i128::from(mul_i64_u32(x, k)),
+                i128::from(x) * i128::from(k),
+                "{x} {k}"
+            );
         }
         assert_eq!(Reciprocal::new(1), None);
         for d in [

@@ -3,7 +3,11 @@
 //! `benches/insn.rs`; `.ci/run` installs QEMU so CI runs them, a plain `cargo test` without
 //! QEMU prints a `SKIPPED` line instead.
 // Host-side test support, never in an image: the firmware's no-panic lints do not apply.
-#![allow(clippy::panic, clippy::indexing_slicing, clippy::arithmetic_side_effects)]
+#![allow(
+    clippy::panic,
+    clippy::indexing_slicing,
+    clippy::arithmetic_side_effects
+)]
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

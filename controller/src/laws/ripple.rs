@@ -10,7 +10,7 @@
 //! [`Reciprocal`] made when the table is built: no divide instruction or library call in
 //! the 1 kHz path, and the result is still exact (rounded once, ≤ ½ LSB).
 
-use crate::fixed_math::{sat_i32, Counts, Reciprocal, Torque};
+use crate::fixed_math::{mul_i64_u32, mul_u32_wide, sat_i32, Counts, Reciprocal, Torque};
 use heapless::Vec;
 
 /// Maximum number of table entries.
@@ -93,7 +93,7 @@ impl RippleTable {
             }
         };
         // scaled position in table units: phase·n < 2³²·2⁶
-        let (idx, frac) = p.div_rem(u64::from(phase).wrapping_mul(u64::from(n)));
+        let (idx, frac) = p.div_rem(mul_u32_wide(phase, n));
         let i0 = idx as usize;
         let i1 = if (idx as u32).wrapping_add(1) >= n {
             0
@@ -103,7 +103,7 @@ impl RippleTable {
         let a = i64::from(self.table.get(i0).copied().unwrap_or(0));
         let b = i64::from(self.table.get(i1).copied().unwrap_or(0));
         // (b − a)·frac: |b−a| < 2¹⁷, frac < 2³² ⇒ < 2⁴⁹. Rounded division (half away from 0).
-        let num = b.wrapping_sub(a).wrapping_mul(i64::from(frac));
+        let num = mul_i64_u32(b.wrapping_sub(a), frac);
         let half = u64::from(period >> 1);
         let (q, _) = p.div_rem(num.unsigned_abs().wrapping_add(half));
         let q = q as i64;
