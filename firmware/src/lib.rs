@@ -10,7 +10,7 @@
 //!   Cortex-M0): it reads received frames from a [`stream`] file through semihosting and
 //!   writes the frames the card sends, so a host recording can be replayed bit for bit.
 //! * `qemu-bench` — instruction counts per step of every law, the full pipeline, one card
-//!   tick and one configuration build ([`bench`]), measured with SysTick under
+//!   tick and one configuration build ([`mod@bench`]), measured with SysTick under
 //!   `-icount shift=0`.
 //!
 //! On the host the binaries are stubs and only this library builds: the stream format, the
