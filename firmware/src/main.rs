@@ -35,8 +35,7 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod board {
-    use core::cell::RefCell;
-    use core::sync::atomic::{AtomicU32, Ordering};
+    use core::cell::{Cell, RefCell};
 
     use controller::card::node::CardNode;
     use controller::card::{Card, Sensors};
@@ -45,7 +44,8 @@ mod board {
     use critical_section::Mutex;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
-    use embassy_stm32::can::{self, Can, CanRx, CanTx};
+    use embassy_stm32::can::enums::BusErrorMode;
+    use embassy_stm32::can::{self, Can, CanRx, CanTx, Properties};
     use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
     #[cfg(feature = "output-encoder")]
     use embassy_stm32::peripherals::TIM4;
@@ -103,15 +103,17 @@ mod board {
     }
 
     static BOARD: Mutex<RefCell<Option<Board>>> = Mutex::new(RefCell::new(None));
-    /// Ticks since boot (the card's clock: ticks × period + TIM6's count).
-    static TICKS: AtomicU32 = AtomicU32::new(0);
+    /// Microseconds at the last tick (the card's clock, 64-bit: it never wraps).
+    static CLOCK_US: Mutex<Cell<u64>> = Mutex::new(Cell::new(0));
     static TX_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
     static BUILD_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
+    /// The card's time: the last tick plus TIM6's count since (1 µs per count).
     fn now_us() -> u64 {
-        let t = TICKS.load(Ordering::Relaxed);
-        let sub = u32::from(pac::TIM6.cnt().read().cnt()).min(PERIOD_US - 1);
-        u64::from(t) * u64::from(PERIOD_US) + u64::from(sub)
+        critical_section::with(|cs| {
+            let sub = u32::from(pac::TIM6.cnt().read().cnt()).min(PERIOD_US - 1);
+            CLOCK_US.borrow(cs).get() + u64::from(sub)
+        })
     }
 
     impl Board {
@@ -186,8 +188,9 @@ mod board {
     #[interrupt]
     fn TIM6_DAC() {
         pac::TIM6.sr().modify(|w| w.set_uif(false));
-        TICKS.fetch_add(1, Ordering::Relaxed);
         let queued = critical_section::with(|cs| {
+            let clock = CLOCK_US.borrow(cs);
+            clock.set(clock.get() + u64::from(PERIOD_US));
             let mut b = BOARD.borrow_ref_mut(cs);
             b.as_mut().map(|b| {
                 b.tick();
@@ -204,7 +207,7 @@ mod board {
     }
 
     #[embassy_executor::task]
-    async fn can_rx(mut rx: CanRx<'static>) {
+    async fn can_rx(mut rx: CanRx<'static>, props: Properties) {
         loop {
             match rx.read().await {
                 Ok(env) => {
@@ -226,11 +229,26 @@ mod board {
                     }
                 }
                 Err(e) => {
-                    defmt::warn!("FDCAN1 bus error {}", defmt::Debug2Format(&e));
+                    // A protocol error alone is the bus's business (CAN retransmits); error
+                    // passive or bus-off means the card can no longer be heard: safe state.
+                    let mode = props.bus_error_mode();
+                    defmt::warn!(
+                        "FDCAN1 {} ({})",
+                        defmt::Debug2Format(&e),
+                        defmt::Debug2Format(&mode)
+                    );
+                    let code = match mode {
+                        BusErrorMode::ErrorPassive => 2,
+                        BusErrorMode::BusOff => 3,
+                        BusErrorMode::ErrorActive => continue,
+                    };
                     with_board(|b| {
-                        b.node.on_bus_error(1, |_| {});
-                        while let Some(m) = b.node.card_mut().poll_transmit() {
-                            b.queue(&m);
+                        let mut out: heapless::Vec<Message, 20> = heapless::Vec::new();
+                        b.node.on_bus_error(code, |m| {
+                            let _ = out.push(*m);
+                        });
+                        for m in &out {
+                            b.queue(m);
                         }
                     });
                     TX_READY.signal(());
@@ -350,7 +368,7 @@ mod board {
         let mut cfg = can::CanConfigurator::new(p.FDCAN1, p.PA11, p.PA12, Irqs);
         cfg.set_bitrate(1_000_000);
         let can: Can<'static> = cfg.into_normal_mode();
-        let (tx, rx, _) = can.split();
+        let (tx, rx, props) = can.split();
 
         let Some(node) = NodeId::new(NODE) else {
             halt()
@@ -383,7 +401,7 @@ mod board {
         };
         critical_section::with(|cs| BOARD.borrow(cs).replace(Some(board)));
         start_tick();
-        spawner.spawn(can_rx(rx).unwrap_or_else(|_| halt()));
+        spawner.spawn(can_rx(rx, props).unwrap_or_else(|_| halt()));
         spawner.spawn(can_tx(tx).unwrap_or_else(|_| halt()));
         spawner.spawn(build().unwrap_or_else(|_| halt()));
         defmt::info!("running: 1 kHz tick on TIM6, FDCAN1 1 Mbit/s");
