@@ -315,9 +315,27 @@ pub fn format_table(table: &[InsnRow]) -> String {
     s.push_str("| per step | M4 bench | M0 bench | M4 tracking | M0 tracking |\n");
     s.push_str("|---|---:|---:|---:|---:|\n");
     for r in table {
+        let label = match r.what.as_str() {
+            "Pd" => "position PD",
+            "Pid" => "position PID",
+            "InputDamping" => "input damping",
+            "Impedance" => "impedance (Km ≠ 0)",
+            "ForcePi" => "force PI",
+            "Friction" => "friction comp",
+            "ImpComp" => "impedance comp",
+            "Ripple" => "ripple table",
+            "Full" => "**full pipeline** (PID + B1e + friction + imp. comp + ripple)",
+            other => other,
+        };
+        let laws = r.tracking != r.bench || r.what.chars().next().is_some_and(char::is_uppercase);
+        let (t4, t0) = if laws {
+            (format!("{:.0}", r.tracking[0]), format!("{:.0}", r.tracking[1]))
+        } else {
+            ("—".into(), "—".into())
+        };
         s.push_str(&format!(
-            "| {} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
-            r.what, r.bench[0], r.bench[1], r.tracking[0], r.tracking[1]
+            "| {label} | {:.0} | {:.0} | {t4} | {t0} |\n",
+            r.bench[0], r.bench[1]
         ));
     }
     s
