@@ -329,7 +329,10 @@ pub fn format_table(table: &[InsnRow]) -> String {
         };
         let laws = r.tracking != r.bench || r.what.chars().next().is_some_and(char::is_uppercase);
         let (t4, t0) = if laws {
-            (format!("{:.0}", r.tracking[0]), format!("{:.0}", r.tracking[1]))
+            (
+                format!("{:.0}", r.tracking[0]),
+                format!("{:.0}", r.tracking[1]),
+            )
         } else {
             ("—".into(), "—".into())
         };
