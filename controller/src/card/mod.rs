@@ -17,6 +17,12 @@
 //!      watchdog, limits) ─► law (mode/state) ─► torque limit (always last) ─► Actuator
 //! ```
 //!
+//! A firmware whose control loop runs in an interrupt switches on deferred builds
+//! ([`Card::set_deferred_builds`]): the f64 configuration build of a commit or an `Enable`
+//! is handed out as a [`BuildRequest`] to run outside the interrupt, and its result is
+//! swapped in at a cycle boundary as above. [`node`] is the card as a bus node (its clock
+//! rule and transmit order), shared by every host of the card.
+//!
 //! State machine (CiA-402 shaped, see `proto::state::State`): `Disabled –Shutdown→ Ready
 //! –Enable(mode)→ Enabled(mode) –QuickStop→ QuickStop → Disabled`; any fault while driving →
 //! `FaultReaction` (configured reaction) → `Fault`, latched until `ClearFault`.
