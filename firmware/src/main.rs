@@ -40,7 +40,7 @@ mod board {
     use controller::card::node::CardNode;
     use controller::card::{Card, Sensors};
     use controller::power_stage::{PowerStage, StageCommand};
-    use controller::proto::{Message, NodeId};
+    use controller::proto::{id, Kind, Message, NodeId};
     use critical_section::Mutex;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
@@ -212,6 +212,16 @@ mod board {
             match rx.read().await {
                 Ok(env) => {
                     let f = env.frame;
+                    // The board's tick and sensors are its own: another node's Sensor or
+                    // OutputEncoder frame with this node number must not step the card.
+                    if let embedded_can::Id::Standard(sid) = embedded_can::Frame::id(&f) {
+                        if matches!(
+                            id::split(sid.as_raw()),
+                            Ok((Kind::Sensor | Kind::OutputEncoder, _))
+                        ) {
+                            continue;
+                        }
+                    }
                     let now = now_us();
                     let build = with_board(|b| {
                         let mut out: heapless::Vec<Message, 20> = heapless::Vec::new();
