@@ -17,11 +17,18 @@
 //!      watchdog, limits) ─► law (mode/state) ─► torque limit (always last) ─► Actuator
 //! ```
 //!
+//! A firmware whose control loop runs in an interrupt switches on deferred builds
+//! ([`Card::set_deferred_builds`]): the f64 configuration build of a commit or an `Enable`
+//! is handed out as a [`BuildRequest`] to run outside the interrupt, and its result is
+//! swapped in at a cycle boundary as above. [`node`] is the card as a bus node (its clock
+//! rule and transmit order), shared by every host of the card.
+//!
 //! State machine (CiA-402 shaped, see `proto::state::State`): `Disabled –Shutdown→ Ready
 //! –Enable(mode)→ Enabled(mode) –QuickStop→ QuickStop → Disabled`; any fault while driving →
 //! `FaultReaction` (configured reaction) → `Fault`, latched until `ClearFault`.
 
 pub mod config;
+pub mod node;
 pub mod si;
 pub mod store;
 
@@ -121,6 +128,49 @@ pub struct Card {
     /// Position-hold reaction: where, and its law state.
     hold_at: Counts,
     hold: PositionLaw,
+    /// Deferred builds: see [`Card::set_deferred_builds`].
+    deferred: bool,
+    /// The build waiting to be taken by the caller.
+    request: Option<BuildRequest>,
+    /// A build was requested and not yet finished.
+    outstanding: bool,
+    /// Supervisor messages that arrived while a build was outstanding, in arrival order.
+    held: heapless::Deque<(u64, NodeId, Message), HELD_CAPACITY>,
+    /// Faults entered since boot (a build started before a fault is stale).
+    fault_count: u32,
+}
+
+/// Supervisor messages a card in deferred-build mode keeps while a build runs.
+pub const HELD_CAPACITY: usize = 8;
+
+/// What a deferred build is for.
+#[derive(Clone, Copy, Debug)]
+enum BuildFor {
+    /// A commit whose writes passed every check; the response waits for the build.
+    Commit(ParamResponse),
+    /// `Shutdown` (Disabled → Ready) checks that the parameters build.
+    Shutdown,
+    /// `Enable(mode)`.
+    Enable(Mode),
+}
+
+/// A configuration build the card hands out instead of running it inside a frame handler
+/// (deferred mode, [`Card::set_deferred_builds`]): `config::build` does f64 arithmetic,
+/// soft-float on a Cortex-M, and takes longer than a control period, so a firmware runs it
+/// outside the control interrupt and hands the result back with [`Card::finish_build`].
+#[derive(Clone, Debug)]
+pub struct BuildRequest {
+    store: ParamStore,
+    mode: Option<Mode>,
+    what: BuildFor,
+    fault_count: u32,
+}
+
+impl BuildRequest {
+    /// Runs the build. Pure: touches nothing but the request.
+    pub fn build(&self) -> Result<CardConfig, ConfigError> {
+        config::build(&self.store, self.mode)
+    }
 }
 
 /// Law flags → wire limit flags.
@@ -188,6 +238,11 @@ impl Card {
             commits: 0,
             hold_at: 0,
             hold: PositionLaw::default(),
+            deferred: false,
+            request: None,
+            outstanding: false,
+            held: heapless::Deque::new(),
+            fault_count: 0,
         })
     }
 
@@ -256,6 +311,23 @@ impl Card {
         if node != self.node && !node.is_broadcast() {
             return None; // another joint's traffic
         }
+        if self.outstanding
+            && matches!(
+                msg,
+                Message::ControlWord(_)
+                    | Message::ParamWrite(_)
+                    | Message::ParamCommit(_)
+                    | Message::ParamRead(_)
+            )
+        {
+            // Order matters (a Disable after an Enable, writes after a commit): everything
+            // of the supervisor's but setpoints waits until the build is finished.
+            self.feed_watchdog(now_us);
+            if self.held.push_back((now_us, node, msg)).is_err() {
+                self.counters.record_refused();
+            }
+            return None;
+        }
         match msg {
             Message::Sensor(s) => {
                 let output_counts = match self.output_frame.take() {
@@ -297,11 +369,9 @@ impl Card {
             }
             Message::ParamCommit(c) => {
                 self.feed_watchdog(now_us);
-                let resp = self.commit(&c);
-                if resp.status != ParamStatus::Ok {
-                    self.counters.record_refused();
+                if let Some(resp) = self.commit(&c) {
+                    self.answer_commit(resp);
                 }
-                self.push(Message::ParamResponse(resp));
             }
             Message::ParamRead(r) => {
                 self.feed_watchdog(now_us);
@@ -361,8 +431,10 @@ impl Card {
 
     /// Validates a commit against the staged set (`proto::staging` rules), re-checks access
     /// in the current state, and builds the configuration; the result is applied at the next
-    /// cycle boundary. Nothing changes unless every check passes.
-    fn commit(&mut self, c: &ParamCommit) -> ParamResponse {
+    /// cycle boundary. Nothing changes unless every check passes. In deferred mode a commit
+    /// whose writes pass is handed out as a [`BuildRequest`] and answered when it finishes
+    /// (`None` here).
+    fn commit(&mut self, c: &ParamCommit) -> Option<ParamResponse> {
         let driving = self.driving();
         let base = self.pending_store().clone();
         let mode = if self.state == State::Enabled {
@@ -370,58 +442,143 @@ impl Card {
         } else {
             None
         };
-        let mut built = None;
+        let mut checked = None;
         let resp = self.staging.commit(c, |entries| {
             for &(id, v) in entries {
                 store::check_write(id, v, driving).map_err(|s| (s, id))?;
             }
             let mut next = base;
             next.apply(entries);
-            match config::build(&next, mode) {
-                Ok(cfg) => {
-                    built = Some((next, cfg));
-                    Ok(())
-                }
-                Err(e) => Err((ParamStatus::InconsistentSet, e.param())),
-            }
-        });
-        if let Some((mut next, config)) = built {
             next.set_unchecked(p::LAST_SET_SEQ, i32::from(c.set_seq));
-            self.pending = Some(Pending {
-                store: Some(next),
-                config,
-            });
+            checked = Some(next);
+            Ok(())
+        });
+        let Some(next) = checked.filter(|_| resp.status == ParamStatus::Ok) else {
+            return Some(resp);
+        };
+        if self.deferred {
+            self.request(next, mode, BuildFor::Commit(resp));
+            return None;
+        }
+        let result = config::build(&next, mode);
+        Some(self.commit_built(resp, next, result))
+    }
+
+    /// The second half of a commit: the build's result decides.
+    fn commit_built(
+        &mut self,
+        mut resp: ParamResponse,
+        next: ParamStore,
+        result: Result<CardConfig, ConfigError>,
+    ) -> ParamResponse {
+        match result {
+            Ok(config) => {
+                self.pending = Some(Pending {
+                    store: Some(next),
+                    config,
+                });
+            }
+            Err(e) => {
+                resp.status = ParamStatus::InconsistentSet;
+                resp.param_id = e.param();
+            }
         }
         resp
+    }
+
+    fn answer_commit(&mut self, resp: ParamResponse) {
+        if resp.status != ParamStatus::Ok {
+            self.counters.record_refused();
+        }
+        self.push(Message::ParamResponse(resp));
+    }
+
+    fn request(&mut self, store: ParamStore, mode: Option<Mode>, what: BuildFor) {
+        self.request = Some(BuildRequest {
+            store,
+            mode,
+            what,
+            fault_count: self.fault_count,
+        });
+        self.outstanding = true;
+    }
+
+    // ---------------------------------------------------------------- deferred builds
+
+    /// Deferred builds (off by default): commits, `Shutdown` and `Enable` no longer build
+    /// their configuration inside [`Card::handle_frame`]; they leave a [`BuildRequest`] for
+    /// [`Card::take_build_request`], and the card goes on stepping with its active
+    /// configuration until [`Card::finish_build`] swaps the result in — still at a cycle
+    /// boundary, as a synchronous commit would. Supervisor messages (but setpoints) that
+    /// arrive meanwhile wait, in order, and run after it. The frames the card sends are those
+    /// of the synchronous card, only later.
+    pub fn set_deferred_builds(&mut self, on: bool) {
+        self.deferred = on;
+    }
+
+    /// True while a build request waits to be taken.
+    pub fn build_requested(&self) -> bool {
+        self.request.is_some()
+    }
+
+    /// The build waiting to run, if any (take it, run [`BuildRequest::build`] outside the
+    /// control interrupt, then call [`Card::finish_build`]).
+    pub fn take_build_request(&mut self) -> Option<BuildRequest> {
+        self.request.take()
+    }
+
+    /// Hands back a finished build. If a fault came in between, the build is stale: a commit
+    /// is answered `NotAllowedInState`, a `Shutdown`/`Enable` is refused. Then the messages
+    /// that waited behind it run.
+    pub fn finish_build(&mut self, req: BuildRequest, result: Result<CardConfig, ConfigError>) {
+        self.outstanding = false;
+        let stale = req.fault_count != self.fault_count;
+        match req.what {
+            BuildFor::Commit(mut resp) => {
+                let resp = if stale {
+                    resp.status = ParamStatus::NotAllowedInState;
+                    resp
+                } else {
+                    self.commit_built(resp, req.store, result)
+                };
+                self.answer_commit(resp);
+            }
+            BuildFor::Shutdown if !stale && self.state == State::Disabled => {
+                self.shutdown_built(result);
+            }
+            BuildFor::Enable(mode)
+                if !stale && matches!(self.state, State::Ready | State::Enabled) =>
+            {
+                self.enable_built(mode, result);
+            }
+            BuildFor::Shutdown | BuildFor::Enable(_) => self.counters.record_refused(),
+        }
+        while !self.outstanding {
+            let Some((t, node, m)) = self.held.pop_front() else {
+                break;
+            };
+            self.handle_message(t, node, m);
+        }
     }
 
     fn control(&mut self, cw: ControlWord) {
         let ok = match (cw, self.state) {
             (ControlWord::KeepAlive, _) => true,
             (ControlWord::Shutdown, State::Disabled) => {
-                match config::build(&self.pending_store().clone(), None) {
-                    Ok(_) => self.state = State::Ready,
-                    Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+                let store = self.pending_store().clone();
+                if self.deferred {
+                    self.request(store, None, BuildFor::Shutdown);
+                } else {
+                    self.shutdown_built(config::build(&store, None));
                 }
                 true
             }
             (ControlWord::Enable(mode), State::Ready | State::Enabled) => {
-                match config::build(&self.pending_store().clone(), Some(mode)) {
-                    Ok(config) => {
-                        self.pending = Some(Pending {
-                            store: self.pending.take().and_then(|p| p.store),
-                            config,
-                        });
-                        if self.state == State::Ready {
-                            // Aim where we are: no jump on arming.
-                            self.x_d = self.current_position_i32(mode);
-                            self.velocity_ff = 0;
-                            self.torque_ff = 0;
-                        }
-                        self.state = State::Enabled;
-                        self.mode = Some(mode);
-                    }
-                    Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+                let store = self.pending_store().clone();
+                if self.deferred {
+                    self.request(store, Some(mode), BuildFor::Enable(mode));
+                } else {
+                    self.enable_built(mode, config::build(&store, Some(mode)));
                 }
                 true
             }
@@ -453,6 +610,33 @@ impl Card {
         }
     }
 
+    fn shutdown_built(&mut self, result: Result<CardConfig, ConfigError>) {
+        match result {
+            Ok(_) => self.state = State::Ready,
+            Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+        }
+    }
+
+    fn enable_built(&mut self, mode: Mode, result: Result<CardConfig, ConfigError>) {
+        match result {
+            Ok(config) => {
+                self.pending = Some(Pending {
+                    store: self.pending.take().and_then(|p| p.store),
+                    config,
+                });
+                if self.state == State::Ready {
+                    // Aim where we are: no jump on arming.
+                    self.x_d = self.current_position_i32(mode);
+                    self.velocity_ff = 0;
+                    self.torque_ff = 0;
+                }
+                self.state = State::Enabled;
+                self.mode = Some(mode);
+            }
+            Err(e) => self.enter_fault(FaultCode::ConfigRejected, i32::from(e.param())),
+        }
+    }
+
     fn pending_store(&self) -> &ParamStore {
         match &self.pending {
             Some(Pending { store: Some(s), .. }) => s,
@@ -477,6 +661,7 @@ impl Card {
             return;
         }
         let was_driving = self.driving();
+        self.fault_count = self.fault_count.wrapping_add(1);
         self.fault = Some((code, detail));
         self.reaction = match code {
             FaultCode::SupervisorWatchdog => match self.cfg.watchdog_reaction {
@@ -514,6 +699,12 @@ impl Card {
     /// its safe state, as it would on any other fault.
     pub fn bus_error(&mut self, code: i32) {
         self.enter_fault(FaultCode::BusError, code);
+    }
+
+    /// Reports that the power stage (amplifier) signalled a fault — its fault output, an
+    /// over-current, a failed write: the card goes to its safe state and latches it.
+    pub fn power_stage_fault(&mut self, status: i32) {
+        self.enter_fault(FaultCode::PowerStage, status);
     }
 
     // ---------------------------------------------------------------- time

@@ -23,7 +23,9 @@
 //! deliberately not fully cancelled ("slightly below"; direction-dependent friction makes full
 //! compensation only conditionally stable).
 
-use crate::fixed_math::{clamp_sym, round_shr, Alpha, Flags, Gain, Output, Torque, Vel};
+use crate::fixed_math::{
+    clamp_sym, mul_i64_u32, round_shr, Alpha, Flags, Gain, Output, Torque, Vel,
+};
 
 /// Default under-compensation factor 0.8 (U1F15).
 pub const DEFAULT_UNDERCOMP: Alpha = Alpha::from_bits(26214);
@@ -85,7 +87,7 @@ impl FrictionComp {
         let raw = coulomb
             .saturating_add(cfg.viscous.apply(vb))
             .clamp(-(1i64 << 46), 1i64 << 46);
-        let scaled = round_shr(raw.wrapping_mul(i64::from(cfg.undercomp.to_bits())), 15);
+        let scaled = round_shr(mul_i64_u32(raw, u32::from(cfg.undercomp.to_bits())), 15);
         let (tau, sat) = clamp_sym(scaled, cfg.limit);
         let mut flags = Flags::NONE;
         flags.set_if(sat, Flags::OUTPUT_SATURATED);

@@ -217,21 +217,28 @@ impl JointState {
             Mode::Impedance(c) => ImpedanceLaw.step(c, sp.x_d, x, v, m.tau_env),
         };
         let mut flags = law.flags;
-        let mut sum = i64::from(law.tau).saturating_add(cfg.input_damping.torque(m.v1));
+        // Every term but the damping is an i32; the damping (|·| < 2⁶²) is clamped to ±2⁴⁰,
+        // far beyond any torque limit, so the sum of five terms stays < 2⁴³ and plain adds
+        // are exact — and the final clamp sees the same sign and saturation as the exact sum.
+        let damping = cfg
+            .input_damping
+            .torque(m.v1)
+            .clamp(-(1i64 << 40), 1i64 << 40);
+        let mut sum = i64::from(law.tau).wrapping_add(damping);
         if let Some(f) = &cfg.friction {
             let o = FrictionComp.step(f, m.v1);
             flags |= o.flags;
-            sum = sum.saturating_add(i64::from(o.tau));
+            sum = sum.wrapping_add(i64::from(o.tau));
         }
         if let Some(ic) = &cfg.imp_comp {
             if matches!(cfg.mode, Mode::Position(_) | Mode::Impedance(_)) {
                 let o = self.imp_comp.step(ic, sp.x_d, x, m.tau_env);
                 flags |= o.flags;
-                sum = sum.saturating_add(i64::from(o.tau));
+                sum = sum.wrapping_add(i64::from(o.tau));
             }
         }
         if let Some(r) = &cfg.ripple {
-            sum = sum.saturating_add(i64::from(r.torque(m.x1)));
+            sum = sum.wrapping_add(i64::from(r.torque(m.x1)));
         }
         self.last_kind = cfg.mode.kind();
         (sum, law.tau, flags)
@@ -241,7 +248,7 @@ impl JointState {
     #[inline]
     pub fn step(&mut self, cfg: &JointConfig, sp: &Setpoint, m: &Measurements) -> JointOutput {
         let (sum, law, mut flags) = self.raw(cfg, sp, m);
-        let total = sum.saturating_add(i64::from(self.offset));
+        let total = sum.wrapping_add(i64::from(self.offset)); // < 2⁴⁴: exact
         let lim = cfg.tau_max.clamp(0, i32::from(i16::MAX));
         let (tau, sat) = clamp_sym(total, lim);
         flags.set_if(sat, Flags::OUTPUT_SATURATED);

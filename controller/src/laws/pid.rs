@@ -122,14 +122,16 @@ impl PidState {
             // pd in Q16, clamped so the shifts cannot overflow (|pd| ≤ 2⁴⁶ LSB is beyond any limit).
             let pd_q16 = pd.clamp(-(1i64 << 46), 1i64 << 46).wrapping_shl(16);
             let i0 = self.i_q16;
-            let cand = i0.saturating_add(di);
+            // |i0| ≤ 2⁴⁷ (the integrator limit), |di| ≤ 2⁶², |tmax| ≤ 2⁴⁷, |pd_q16| ≤ 2⁶²:
+            // none of these sums can wrap.
+            let cand = i0.wrapping_add(di);
             let mut i1 = cand;
             if cand > i0 {
                 // growing: stop where the output reaches +tau_max (but never force it down)
-                let head = tmax.saturating_sub(pd_q16);
+                let head = tmax.wrapping_sub(pd_q16);
                 i1 = i1.min(i0.max(head));
             } else if cand < i0 {
-                let head = tmax.wrapping_neg().saturating_sub(pd_q16);
+                let head = tmax.wrapping_neg().wrapping_sub(pd_q16);
                 i1 = i1.max(i0.min(head));
             }
             let i2 = i1.clamp(ilim.wrapping_neg(), ilim);

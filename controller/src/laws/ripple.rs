@@ -6,9 +6,11 @@
 //! motor's cogging period 2304/18 = 128 counts, or a harmonic-drive's 2-per-wave-generator-rev
 //! ripple). Entry `i` sits at phase `i·period/n`; between entries the correction is linearly
 //! interpolated, wrapping from the last entry back to the first. Lookup is a Euclidean
-//! remainder, one multiply and one division — bounded, no loops.
+//! remainder, one multiply and two divisions — all three by the period, so they run on a
+//! [`Reciprocal`] made when the table is built: no divide instruction or library call in
+//! the 1 kHz path, and the result is still exact (rounded once, ≤ ½ LSB).
 
-use crate::fixed_math::{sat_i32, Counts, Torque};
+use crate::fixed_math::{mul_i64_u32, mul_u32_wide, sat_i32, Counts, Reciprocal, Torque};
 use heapless::Vec;
 
 /// Maximum number of table entries.
@@ -27,7 +29,9 @@ pub enum RippleError {
 /// The ripple table (motor-side torque LSB per entry).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RippleTable {
-    period: u32,
+    period: Reciprocal,
+    /// 2⁶³ mod period: moves an `i64` position into `u64` without changing its residue.
+    offset: u32,
     table: Vec<i16, RIPPLE_MAX>,
 }
 
@@ -41,12 +45,19 @@ impl RippleTable {
             return Err(RippleError::Period);
         }
         let table = Vec::from_slice(entries).map_err(|_| RippleError::Length)?;
-        Ok(RippleTable { period, table })
+        // period ≥ len ≥ 2
+        let period = Reciprocal::new(period).ok_or(RippleError::Period)?;
+        let (_, offset) = period.div_rem(1u64 << 63);
+        Ok(RippleTable {
+            period,
+            offset,
+            table,
+        })
     }
 
     /// Period in counts.
     pub fn period(&self) -> u32 {
-        self.period
+        self.period.divisor()
     }
 
     /// The entries.
@@ -57,16 +68,34 @@ impl RippleTable {
     /// Interpolated correction at multi-turn position `x` (motor counts).
     #[inline]
     pub fn torque(&self, x: Counts) -> Torque {
-        let n = self.table.len() as u64; // 2..=64
-        let period = u64::from(self.period); // ≥ n ≥ 2
-                                             // phase in [0, period)
-        let phase = x.checked_rem_euclid(i64::from(self.period)).unwrap_or(0) as u64;
+        let n = self.table.len() as u32; // 2..=64
+        let p = self.period;
+        let period = p.divisor(); // ≥ n ≥ 2
+                                  // Euclidean phase in [0, period).
+        let phase = match u32::try_from(x.unsigned_abs()) {
+            // |x| < 2³² (the usual case): a 32-bit remainder, mirrored for negative x.
+            Ok(m) => {
+                let (_, r) = p.div_rem_u32(m);
+                if x >= 0 || r == 0 {
+                    r
+                } else {
+                    period.wrapping_sub(r)
+                }
+            }
+            // Otherwise x + 2⁶³ is a u64 whose residue is (x mod P) + offset.
+            Err(_) => {
+                let (_, r) = p.div_rem((x as u64) ^ (1u64 << 63));
+                if r >= self.offset {
+                    r.wrapping_sub(self.offset)
+                } else {
+                    r.wrapping_add(period.wrapping_sub(self.offset))
+                }
+            }
+        };
         // scaled position in table units: phase·n < 2³²·2⁶
-        let s = phase.wrapping_mul(n);
-        let idx = s.checked_div(period).unwrap_or(0);
-        let frac = s.checked_rem(period).unwrap_or(0); // in [0, period)
+        let (idx, frac) = p.div_rem(mul_u32_wide(phase, n));
         let i0 = idx as usize;
-        let i1 = if idx.wrapping_add(1) >= n {
+        let i1 = if (idx as u32).wrapping_add(1) >= n {
             0
         } else {
             i0.wrapping_add(1)
@@ -74,14 +103,10 @@ impl RippleTable {
         let a = i64::from(self.table.get(i0).copied().unwrap_or(0));
         let b = i64::from(self.table.get(i1).copied().unwrap_or(0));
         // (b − a)·frac: |b−a| < 2¹⁷, frac < 2³² ⇒ < 2⁴⁹. Rounded division (half away from 0).
-        let num = b.wrapping_sub(a).wrapping_mul(frac as i64);
-        let p = period as i64;
-        let half = p.wrapping_shr(1);
-        let q = if num >= 0 {
-            num.wrapping_add(half).checked_div(p).unwrap_or(0)
-        } else {
-            num.wrapping_sub(half).checked_div(p).unwrap_or(0)
-        };
-        sat_i32(a.wrapping_add(q)).0
+        let num = mul_i64_u32(b.wrapping_sub(a), frac);
+        let half = u64::from(period >> 1);
+        let (q, _) = p.div_rem(num.unsigned_abs().wrapping_add(half));
+        let q = q as i64;
+        sat_i32(a.wrapping_add(if num >= 0 { q } else { q.wrapping_neg() })).0
     }
 }

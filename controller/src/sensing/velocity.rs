@@ -1,6 +1,6 @@
 //! Velocity estimators (see the module docs of `sensing` for why).
 
-use crate::fixed_math::{round_shr, sat_i32, Counts, Flags, Vel, VEL_FRAC_BITS};
+use crate::fixed_math::{mul_i64_u32, round_shr, sat_i32, Counts, Flags, Vel, VEL_FRAC_BITS};
 
 /// Largest |position| the observer accepts, in counts (2⁴⁶ ≈ 7·10¹³: 3·10¹⁰ rev at 2304 cpr,
 /// 6.7·10⁷ rev at 2²⁰ cpr). Beyond it the input is clamped and flagged; re-home the unwrapper.
@@ -158,8 +158,8 @@ impl TrackingObserver {
             flags |= Flags::SENSOR_JUMP;
         } else {
             // |r| ≤ 2³¹ (Q16 of ≤ 32767 counts), α, β < 2²⁶ ⇒ products < 2⁵⁷.
-            let dp = round_shr(r.wrapping_mul(i64::from(cfg.alpha_q24)), 24);
-            let dv = round_shr(r.wrapping_mul(i64::from(cfg.beta_q24)), 8);
+            let dp = round_shr(mul_i64_u32(r, cfg.alpha_q24), 24);
+            let dv = round_shr(mul_i64_u32(r, cfg.beta_q24), 8);
             s.p_q16 = p_pred.saturating_add(dp);
             s.v_q32 = s.v_q32.saturating_add(dv);
         }
@@ -173,7 +173,7 @@ impl TrackingObserver {
     /// Current velocity estimate in counts/s (Q28.4), saturated to the `Vel` range.
     pub fn velocity(&self, cfg: &ObserverConfig) -> Vel {
         // Q32 counts/tick → Q16 counts/tick (|·| ≤ 2³⁴) → × rate (≤ 2¹⁶) → Q16 counts/s (< 2⁵⁰).
-        let v_q16 = round_shr(self.state.v_q32, 16).wrapping_mul(i64::from(cfg.rate_hz));
+        let v_q16 = mul_i64_u32(round_shr(self.state.v_q32, 16), u32::from(cfg.rate_hz));
         let v_q4 = round_shr(v_q16, 16u32.wrapping_sub(VEL_FRAC_BITS));
         Vel::from_bits(sat_i32(v_q4).0)
     }
