@@ -357,6 +357,46 @@ fn skipped_sequence_numbers_beyond_tolerance_fault() {
     assert_eq!(r.faults(), vec![FaultCode::SequenceError]);
 }
 
+/// Single lost sensor frames stay within `max_seq_skip` and do not fault the card, but the
+/// card counts every one of them.
+#[test]
+fn tolerated_sequence_gaps_are_counted() {
+    let mut r = armed(Mode::PositionPdColocated, &pd_gains(2.0, 0.008, 1.0));
+    r.tick();
+    for _ in 0..10 {
+        r.seq = r.seq.wrapping_add(1); // one lost
+        r.tick();
+        r.tick();
+    }
+    assert!(r.faults().is_empty(), "{:?}", r.faults());
+    assert_eq!(r.card.sensor_frames_lost(), 10);
+    assert_eq!(r.card.state(), State::Enabled);
+}
+
+/// Bus-off (or error-passive) is a fault with torque off at the very next tick; a degraded
+/// bus (warning level, protocol error, no ACK, overflow) is counted and changes nothing.
+#[test]
+fn bus_errors_fault_and_bus_warnings_count() {
+    let mut r = armed(Mode::PositionPdColocated, &pd_gains(2.0, 0.008, 1.0));
+    r.setpoint(400);
+    for _ in 0..20 {
+        r.tick();
+    }
+    assert_ne!(r.tick().torque, 0, "driving before the fault");
+    r.card.bus_warning();
+    r.card.bus_warning();
+    assert_eq!(r.card.bus_warnings(), 2);
+    assert_eq!(r.card.state(), State::Enabled);
+    assert_ne!(r.tick().torque, 0, "a warning changes nothing");
+    r.card.bus_error(0x40);
+    r.drain();
+    assert_eq!(r.faults(), vec![FaultCode::BusError]);
+    assert_eq!(r.card.fault(), Some((FaultCode::BusError, 0x40)));
+    let a = r.tick();
+    assert_eq!((a.torque, a.drive, a.fault), (0, false, true));
+    assert_eq!(r.card.state(), State::Fault);
+}
+
 #[test]
 fn bumpless_gain_commit_with_unchanged_error() {
     let mut g = pd_gains(2.0, 0.008, 1.0);

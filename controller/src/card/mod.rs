@@ -138,6 +138,10 @@ pub struct Card {
     held: heapless::Deque<(u64, NodeId, Message), HELD_CAPACITY>,
     /// Faults entered since boot (a build started before a fault is stale).
     fault_count: u32,
+    /// Degraded-bus reports since boot ([`Card::bus_warning`]), saturating.
+    bus_warnings: u32,
+    /// Own `Sensor` frames missing from the sequence since boot, saturating.
+    sensor_frames_lost: u32,
 }
 
 /// Supervisor messages a card in deferred-build mode keeps while a build runs.
@@ -243,6 +247,8 @@ impl Card {
             outstanding: false,
             held: heapless::Deque::new(),
             fault_count: 0,
+            bus_warnings: 0,
+            sensor_frames_lost: 0,
         })
     }
 
@@ -283,6 +289,16 @@ impl Card {
     /// Limit flags of the last tick.
     pub fn limits(&self) -> LimitFlags {
         self.limits
+    }
+    /// Degraded-bus reports since boot (see [`Card::bus_warning`]), saturating.
+    pub fn bus_warnings(&self) -> u32 {
+        self.bus_warnings
+    }
+    /// Own `Sensor` frames that never arrived (gaps in their sequence numbers) since boot,
+    /// saturating. Single gaps within `max_seq_skip` do not fault the card; this count is
+    /// how a host still sees them.
+    pub fn sensor_frames_lost(&self) -> u32 {
+        self.sensor_frames_lost
     }
 
     fn driving(&self) -> bool {
@@ -701,6 +717,15 @@ impl Card {
         self.enter_fault(FaultCode::BusError, code);
     }
 
+    /// Reports a degraded bus that still carries frames (error-warning level, a protocol
+    /// error, a missing ACK, a receive overflow): counted, nothing else. CAN retransmits
+    /// what failed; what was lost for good shows up where it matters — a sequence gap, a
+    /// silent supervisor, a commit whose checksum no longer matches — and those checks
+    /// fault the card on their own terms.
+    pub fn bus_warning(&mut self) {
+        self.bus_warnings = self.bus_warnings.saturating_add(1);
+    }
+
     /// Reports that the power stage (amplifier) signalled a fault — its fault output, an
     /// over-current, a failed write: the card goes to its safe state and latches it.
     pub fn power_stage_fault(&mut self, status: i32) {
@@ -813,6 +838,9 @@ impl Card {
         // Sequence: lost frames in a row beyond the tolerance are a fault.
         if let Some(last) = self.last_seq {
             let lost = s.seq.wrapping_sub(last).wrapping_sub(1);
+            if lost != u8::MAX {
+                self.sensor_frames_lost = self.sensor_frames_lost.saturating_add(u32::from(lost));
+            }
             if lost > self.cfg.max_seq_skip && lost != u8::MAX && self.driving() {
                 let detail = i32::from(u16::from(last.wrapping_add(1)) << 8 | u16::from(s.seq));
                 self.enter_fault(FaultCode::SequenceError, detail);

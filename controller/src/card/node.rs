@@ -110,6 +110,14 @@ impl CardNode {
         self.drain(&mut send);
     }
 
+    /// The card's bus is degraded but still carries frames (warning level, protocol error,
+    /// missing ACK, receive overflow): counted by the card ([`Card::bus_warning`]), then
+    /// its frames.
+    pub fn on_bus_warning(&mut self, mut send: impl FnMut(&Message)) {
+        self.card.bus_warning();
+        self.drain(&mut send);
+    }
+
     /// Hands out whatever the card has queued, without running anything.
     pub fn flush(&mut self, mut send: impl FnMut(&Message)) {
         self.drain(&mut send);
