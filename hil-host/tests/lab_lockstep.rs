@@ -23,7 +23,11 @@ fn lab(kind: ScenarioKind, preset: &str, seed: u64) -> Lab {
 fn run(kind: ScenarioKind, preset: &str) -> Lab {
     let mut l = lab(kind, preset, 1);
     l.run(|_, _| {}).expect("run");
-    println!("== {} on {preset}\n{}", kind.name(), l.summary().table());
+    println!(
+        "== {} on {preset}\n{}",
+        kind.name(),
+        l.summary().expect("summary").table()
+    );
     assert_eq!(
         l.supervisor.events,
         vec![Event::Committed],
@@ -34,8 +38,8 @@ fn run(kind: ScenarioKind, preset: &str) -> Lab {
 
 #[test]
 fn position_step_tracks_to_within_the_friction_band() {
-    let l = run(ScenarioKind::Step, "harmonic-drive-60");
-    let s = l.summary();
+    let mut l = run(ScenarioKind::Step, "harmonic-drive-60");
+    let s = l.summary().expect("summary");
     let model = sim_plant::preset("harmonic-drive-60").unwrap();
     // PD against Coulomb friction stops where K·e = τc: the thesis's error band.
     let row = sim_plant::presets::row("harmonic-drive-60").unwrap();
@@ -59,8 +63,8 @@ fn position_step_tracks_to_within_the_friction_band() {
 
 #[test]
 fn stiffness_emulation_achieves_the_desired_stiffness() {
-    let l = run(ScenarioKind::Stiffness, "whoi-cable-30");
-    let s = l.summary();
+    let mut l = run(ScenarioKind::Stiffness, "whoi-cable-30");
+    let s = l.summary().expect("summary");
     // achieved = series of electronic spring and transmission (thesis §5), a few % below
     let ratio = s.get("achieved / desired").unwrap();
     assert!((0.9..=1.02).contains(&ratio), "achieved/desired = {ratio}");
@@ -72,8 +76,8 @@ fn stiffness_emulation_achieves_the_desired_stiffness() {
 
 #[test]
 fn damper_emulation_achieves_the_desired_damping() {
-    let l = run(ScenarioKind::Damper, "whoi-cable-30");
-    let s = l.summary();
+    let mut l = run(ScenarioKind::Damper, "whoi-cable-30");
+    let s = l.summary().expect("summary");
     let ratio = s.get("achieved / desired").unwrap();
     // desired + the transmission's own viscous (≈1 N·m·s/rad of 108)
     assert!((0.97..=1.08).contains(&ratio), "achieved/desired = {ratio}");
@@ -86,15 +90,19 @@ fn damper_emulation_achieves_the_desired_damping() {
 
 #[test]
 fn force_control_in_contact_holds_the_desired_torque() {
-    let l = run(ScenarioKind::Wall, "whoi-cable-30");
-    let e = l.summary().get("steady force error").unwrap();
+    let mut l = run(ScenarioKind::Wall, "whoi-cable-30");
+    let e = l
+        .summary()
+        .expect("summary")
+        .get("steady force error")
+        .unwrap();
     assert!(e.abs() < 0.1, "steady force error {e} N·m");
 }
 
 #[test]
 fn backlash_hold_reports_a_limit_cycle_figure() {
-    let l = run(ScenarioKind::Backlash, "cyclo-29");
-    let s = l.summary();
+    let mut l = run(ScenarioKind::Backlash, "cyclo-29");
+    let s = l.summary().expect("summary");
     let m = s.get("motor limit cycle p-p").unwrap();
     // bounded: never more than a few backlash widths (0.8° for the Cyclo)
     assert!(m.is_finite() && m < 4.0, "limit cycle {m}°");

@@ -90,6 +90,8 @@ struct RxState {
 struct Node {
     id: u64,
     recv_own: bool,
+    /// Receive queue length (`None` = unbounded).
+    capacity: Option<usize>,
     rx: Mutex<RxState>,
     ready: Condvar,
 }
@@ -170,10 +172,21 @@ impl InprocHub {
 
     /// Attaches a new node. It receives every frame sent after this call by other nodes.
     pub fn attach(&self, node_name: &str) -> InprocBus {
+        self.attach_with(node_name, self.hub.rx_capacity)
+    }
+
+    /// Attaches a node whose receive queue is unbounded whatever the hub's capacity (a
+    /// logger with a deep socket buffer, as `candump` on a real bus).
+    pub fn attach_unbounded(&self, node_name: &str) -> InprocBus {
+        self.attach_with(node_name, None)
+    }
+
+    fn attach_with(&self, node_name: &str, capacity: Option<usize>) -> InprocBus {
         let mut st = lock(&self.hub.state);
         let node = Arc::new(Node {
             id: st.next_id,
             recv_own: false,
+            capacity,
             rx: Mutex::new(RxState::default()),
             ready: Condvar::new(),
         });
@@ -243,6 +256,7 @@ impl InprocBus {
         let node = Arc::new(Node {
             id: self.node.id,
             recv_own: on,
+            capacity: self.node.capacity,
             rx: Mutex::new(std::mem::take(&mut *lock(&self.node.rx))),
             ready: Condvar::new(),
         });
@@ -278,7 +292,7 @@ impl CanBus for InprocBus {
                 continue;
             }
             let mut rx = lock(&n.rx);
-            match self.hub.rx_capacity {
+            match n.capacity {
                 Some(cap) if rx.items.len() >= cap => rx.dropped += 1,
                 _ => {
                     rx.items.push_back(Item::Frame(*frame));
@@ -426,6 +440,7 @@ mod tests {
         let hub = InprocHub::with_rx_capacity("ovf", 2);
         let mut a = hub.attach("a");
         let mut b = hub.attach("b");
+        let mut logger = hub.attach_unbounded("logger");
         for i in 0..5 {
             a.send(&f(i, &[])).unwrap();
         }
@@ -437,9 +452,16 @@ mod tests {
         assert_eq!(b.try_recv().unwrap(), Some(f(0, &[])));
         assert_eq!(b.try_recv().unwrap(), Some(f(1, &[])));
         assert_eq!(b.try_recv().unwrap(), None);
+        for i in 0..5 {
+            assert_eq!(
+                logger.try_recv().unwrap(),
+                Some(f(i, &[])),
+                "the logger keeps all"
+            );
+        }
 
         hub.inject_fault(BusFault::bus_off());
-        for n in [&mut a, &mut b] {
+        for n in [&mut a, &mut b, &mut logger] {
             let e = n.try_recv().unwrap_err();
             assert!(e.requires_safe_state(), "{e}");
             assert!(e.to_string().contains("bus-off"), "{e}");

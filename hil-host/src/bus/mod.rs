@@ -6,6 +6,7 @@
 //!   blocking `receive` has none). [`Blocking`] adapts any `CanBus` to
 //!   `embedded_can::blocking::Can` for code written against that trait.
 //! * [`InprocHub`]/[`InprocBus`]: an in-process broadcast bus with bus-load accounting.
+//! * [`Impaired`]: any node's receive side with injected losses, delays and jitter.
 //! * [`SocketCanBus`] (Linux): `socketcan::CanSocket` with error frames decoded into
 //!   [`BusFault`]s.
 //! * [`open_bus`]: `"inproc"`/`"mem"` (optionally `":name"`) or an interface name.
@@ -18,6 +19,7 @@
 pub mod bits;
 pub mod fault;
 pub mod frame;
+pub mod impair;
 pub mod inproc;
 #[cfg(target_os = "linux")]
 pub mod socketcan_bus;
@@ -31,6 +33,7 @@ pub use embedded_can;
 pub use self::socketcan_bus::SocketCanBus;
 pub use fault::{BusError, BusFault, Direction, FaultCause, Severity, VCAN_HOWTO};
 pub use frame::{convert, ClassicFrame};
+pub use impair::{Impaired, LinkClock, LinkFault, LinkStats};
 pub use inproc::{BusStats, InprocBus, InprocHub};
 
 /// A node's connection to a CAN bus.

@@ -1,7 +1,7 @@
 //! The HIL commands: `demo`, `run`, `card`, `plant`, `supervise`, `replay`, `bench`.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -11,30 +11,48 @@ use controller::proto::{Message, Mode, NodeId};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
-use crate::bus::{open_bus, CanBus};
+use crate::bus::{open_bus, BusSpec, CanBus, Impaired, InprocHub, LinkClock, LinkStats};
 use crate::candump::{read_log, LoggedFrame};
 use crate::lab::card_node::CardNode;
 use crate::lab::gains;
+use crate::lab::inject::{FaultPlan, Injection, Node, Window};
 use crate::lab::plant_node::PlantNode;
-use crate::lab::plot::plot_run;
-use crate::lab::recorder::Recorder;
+use crate::lab::plot::plot_recording;
+use crate::lab::recorder::{read_rows, Recorder};
+use crate::lab::report::{self, CardFacts, Facts, Report, RunFailed, SupervisorFacts, Verdict};
 use crate::lab::scenario::{Scenario, ScenarioKind};
-use crate::lab::summary::summarize;
+use crate::lab::summary::summarize_with;
 use crate::lab::supervisor::{Event, Phase, Supervisor};
 use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantLoop, PlantStats};
 use crate::lab::trajectory::Trajectory;
 use crate::lab::{Lab, LabOptions};
 
+/// What `--inject` takes, for the help texts.
+pub const INJECT_HELP: &str = "Faults (--inject, repeatable; T and D in seconds of run time):
+  bus-off@T  error-passive@T  error-warning@T  no-ack@T  protocol@T  rx-overflow@T
+                                 one error frame at T, seen by every node (in-process bus)
+  drop:NODE=RATE[@T[+D]]         NODE (card, plant, supervisor) loses received frames (0.05 or 5%)
+  delay:NODE=DUR[@T[+D]]         NODE receives frames DUR late (2ms, 500us)
+  jitter:NODE=DUR[@T[+D]]        NODE receives frames up to DUR late
+  stall-plant@T+D                the plant node sends nothing for D
+  kill-supervisor@T[+D]          the supervisor sends and hears nothing from T (for D)
+  rx-queue=N                     receive queues of N frames (in-process bus)
+Exit codes: 0 the run completed clean; 1 it faulted, did not complete, or ran degraded
+(bus error frames, frames lost above --max-loss); 130 interrupted (Ctrl-C); 2 bad input.";
 /// `demo` examples.
 pub const DEMO_EXAMPLES: &str = "Examples:
   hil-host demo                                   # stiffness emulation on the WHOI cable reducer
   hil-host demo --scenario all --preset harmonic-drive-60
-  hil-host demo --scenario backlash --preset cyclo-29 --out results/";
+  hil-host demo --scenario backlash --preset cyclo-29 --out results/
+  hil-host demo --scenario step --inject bus-off@1.0 --json
+  hil-host demo --seconds 600 --recover --inject drop:card=2%@60+10 --inject stall-plant@120+0.05";
 /// `run` examples.
 pub const RUN_EXAMPLES: &str = "Examples:
   hil-host run --bus vcan0 --scenario step --preset harmonic-drive-60
   hil-host run --bus vcan0 --scenario stiffness --realtime --csv run.csv --candump run.log
-  hil-host run --bus inproc --scenario damper        # threads on the in-process bus";
+  hil-host run --bus inproc --scenario damper        # threads on the in-process bus
+  hil-host run --bus inproc --realtime --inject stall-plant@2+0.005 --sensor-timeout-us 3000
+  hil-host run --bus inproc --scenario step --die-after 500   # the card's watchdog stops the joint";
 /// `card` examples.
 pub const CARD_EXAMPLES: &str = "Examples:
   hil-host card --bus vcan0 --node 1
@@ -105,6 +123,50 @@ fn node(n: u8) -> Result<NodeId> {
         .ok_or_else(|| anyhow!("--node must be 1..=127, got {n}"))
 }
 
+/// What every lab command that reports a run takes.
+#[derive(Debug, Clone, Args)]
+pub struct ReportArgs {
+    /// Print the report as JSON (one object per run) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Share of ticks without an actuator frame above which the run counts as degraded.
+    #[arg(long, default_value_t = report::MAX_LOSS)]
+    pub max_loss: f64,
+}
+
+impl ReportArgs {
+    fn check(&self) -> Result<()> {
+        if !(0.0..=1.0).contains(&self.max_loss) {
+            bail!("--max-loss must be between 0 and 1, got {}", self.max_loss);
+        }
+        Ok(())
+    }
+}
+
+/// Prints a report (text or JSON).
+fn print_report(r: &Report, json: bool) {
+    if json {
+        println!("{}", r.json());
+    } else {
+        println!("\n{}", r.text());
+    }
+}
+
+/// The worst of several verdicts, as an error carrying its exit code.
+fn verdicts(reports: &[Report]) -> Result<()> {
+    let worst = reports
+        .iter()
+        .find(|r| r.verdict == Verdict::Interrupted)
+        .or_else(|| reports.iter().find(|r| r.verdict != Verdict::Ok));
+    match worst {
+        Some(r) => Err(RunFailed::check(r)
+            .err()
+            .map(anyhow::Error::new)
+            .unwrap_or_else(|| anyhow!("run failed"))),
+        None => Ok(()),
+    }
+}
+
 fn stop_on_ctrl_c() -> Arc<AtomicBool> {
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
@@ -132,12 +194,27 @@ pub struct DemoArgs {
     pub scenario: String,
     #[command(flatten)]
     pub plant: PlantChoice,
-    /// Seed of the sensor noise (same seed → identical recording).
+    /// Seed of the sensor noise and of injected losses (same seed → identical recording).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Output directory for the CSV, candump log and PNG.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
+    /// Seconds of the experiment (default: the scenario's own).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Inject a fault (repeatable; see below).
+    #[arg(long, value_name = "SPEC")]
+    pub inject: Vec<String>,
+    /// After a fault the supervisor clears it and arms the card again (the run still
+    /// reports every fault and exits non-zero).
+    #[arg(long)]
+    pub recover: bool,
+    /// The card's sensor timeout, µs (default 3000).
+    #[arg(long)]
+    pub sensor_timeout_us: Option<u32>,
+    #[command(flatten)]
+    pub report: ReportArgs,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -161,22 +238,44 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
         })
 }
 
-/// Runs the zero-setup demo.
+fn check_seconds(s: Option<f64>) -> Result<()> {
+    match s {
+        Some(v) if !(v.is_finite() && v > 0.0) => {
+            bail!("--seconds must be a number of seconds above 0, got {v}")
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Runs the zero-setup demo. Every scenario's report is printed; the exit code is the
+/// worst verdict's.
 pub fn demo(a: DemoArgs) -> Result<()> {
     let model = a.plant.load()?;
+    a.report.check()?;
+    check_seconds(a.seconds)?;
+    let plan = FaultPlan::parse(&a.inject)?;
+    let kinds = scenarios(&a.scenario)?;
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
-    for kind in scenarios(&a.scenario)? {
-        let sc = Scenario::new(kind, &model)?;
+    let mut reports = vec![];
+    for kind in kinds {
+        let mut sc = Scenario::new(kind, &model)?;
+        if let Some(s) = a.seconds {
+            sc.duration_s = s;
+        }
+        sc.gains.sensor_timeout_us = a.sensor_timeout_us;
         let mut lab = Lab::new(
             &model,
             sc,
             &LabOptions {
                 seed: a.seed,
+                faults: plan.clone(),
+                max_loss: a.report.max_loss,
                 ..LabOptions::default()
             },
         )?;
+        lab.supervisor.set_recovery(a.recover);
         let stem = a
             .out
             .join(format!("demo-{}-{}", kind.name(), a.plant.label()));
@@ -187,45 +286,44 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         );
         lab.recorder.write_csv(&csv)?;
         lab.recorder.write_candump(&log, "inproc")?;
-        let pb = bar(lab.scenario.ticks(), a.quiet);
         let n = lab.scenario.ticks();
-        while lab.time() * 1000.0 < n as f64 && !stop.load(Ordering::Relaxed) {
-            lab.step()?;
-            pb.set_position((lab.time() * 1000.0) as u64);
+        let pb = bar(n, a.quiet || a.report.json);
+        while lab.ticks() < n && !stop.load(Ordering::Relaxed) {
+            lab.step()
+                .with_context(|| format!("{} at tick {}", kind.name(), lab.ticks()))?;
+            if lab.ticks().is_multiple_of(100) {
+                pb.set_position(lab.ticks());
+            }
         }
         pb.finish_and_clear();
         lab.recorder.flush()?;
-        // Every file is complete before anything is printed (stdout may be a closed pipe).
-        plot_run(
-            &png,
-            &format!("{} — {}", kind.name(), a.plant.label()),
-            &lab.recorder.rows,
-            lab.scenario.scale.gear_ratio,
-        )?;
-        println!(
-            "\n{} on {} — card + plant + supervisor on the in-process bus, lockstep, seed {}",
+        let interrupted = lab.ticks() < n;
+        let title = format!(
+            "{} on {} — card + plant + supervisor on the in-process bus, lockstep, seed {}",
             kind.name(),
             a.plant.label(),
             a.seed
         );
-        println!("{}", lab.summary().table());
-        for e in &lab.supervisor.events {
-            if !matches!(e, Event::Committed) {
-                println!("  supervisor: {e:?}");
-            }
-        }
-        println!(
-            "  wrote {}, {}, {}",
-            csv.display(),
-            log.display(),
-            png.display()
-        );
-        if stop.load(Ordering::Relaxed) {
-            println!("  interrupted: recording flushed");
+        let mut r = lab.report(&title, interrupted)?;
+        // Every file is complete before anything is printed (stdout may be a closed pipe).
+        plot_recording(
+            &png,
+            &format!("{} — {}", kind.name(), a.plant.label()),
+            &csv,
+            lab.recorder.tally().rows,
+            lab.scenario.scale.gear_ratio,
+        )?;
+        r.files = [&csv, &log, &png]
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
+        print_report(&r, a.report.json);
+        reports.push(r);
+        if interrupted {
             break;
         }
     }
-    Ok(())
+    verdicts(&reports)
 }
 
 /// Options shared by the nodes on a real bus.
@@ -297,17 +395,25 @@ pub struct PlantArgs {
     /// Give up waiting for one actuator frame after this many ms (lockstep).
     #[arg(long, default_value_t = 200)]
     pub timeout_ms: u64,
+    /// The card's sensor timeout, µs, against which real-time lateness is judged (default
+    /// the card's, 3000).
+    #[arg(long)]
+    pub sensor_timeout_us: Option<u32>,
+    #[command(flatten)]
+    pub report: ReportArgs,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
 }
 
+/// The plant loop of `plant` and `run`, with its recorder.
 fn plant_loop(
     a: &PlantArgs,
     bus: &mut dyn CanBus,
     model: &Model,
     sc: Option<&Scenario>,
     stop: &AtomicBool,
+    faults: (FaultPlan, Option<InprocHub>, Option<Arc<AtomicU64>>),
 ) -> Result<(PlantStats, Recorder)> {
     let n = node(a.bus.node)?;
     let env = sc
@@ -342,7 +448,8 @@ fn plant_loop(
             timeout: Duration::from_millis(a.timeout_ms),
         };
     }
-    let pb = bar(ticks, a.quiet);
+    (lp.faults, lp.hub, lp.tick) = faults;
+    let pb = bar(ticks, a.quiet || a.report.json);
     let st = run_plant(bus, &mut pn, sc, &mut rec, lp, stop, |k, _| {
         pb.set_position(k)
     })?;
@@ -350,38 +457,133 @@ fn plant_loop(
     Ok((st, rec))
 }
 
-fn print_plant_stats(st: &PlantStats) {
+/// The report of a run whose plant ran in this process.
+#[allow(clippy::too_many_arguments)]
+fn plant_report(
+    title: String,
+    ticks_planned: u64,
+    st: &PlantStats,
+    rec: &mut Recorder,
+    sc: Option<&Scenario>,
+    card: Option<CardFacts>,
+    supervisor: Option<SupervisorFacts>,
+    links: Vec<(Node, LinkStats)>,
+    plan: &FaultPlan,
+    sensor_timeout_us: Option<u32>,
+    ra: &ReportArgs,
+    interrupted: bool,
+) -> Result<Report> {
+    let facts = Facts {
+        title,
+        ticks_planned,
+        ticks_run: st.ticks,
+        interrupted,
+        tally: rec.tally().clone(),
+        missing_actuator: st.missing,
+        stale_actuator: st.stale,
+        plant_bus_faults: st.bus_faults.clone(),
+        card,
+        supervisor,
+        links,
+        injected: plan.items.iter().map(|i| i.to_string()).collect(),
+        lateness: st.lateness.clone(),
+        sensor_timeout_us: sensor_timeout_us
+            .map_or_else(report::default_sensor_timeout_us, u64::from),
+        max_loss: ra.max_loss,
+    };
+    let r = Report::judge(facts);
     let (exact, worst) = st.bus_load();
-    println!(
-        "  ticks {}  missing actuator frames {}  stale {}  wall {:.2} s  ({:.0} cycles/s)",
+    rec.flush()?;
+    let path = rec
+        .csv_path()
+        .ok_or_else(|| anyhow!("the recording was not kept"))?
+        .to_path_buf();
+    let figures = match sc {
+        Some(sc) => summarize_with(sc, || read_rows(&path), exact, worst, r.withholds())?,
+        None => {
+            let mut s = crate::lab::summary::Summary::default();
+            s.rows.push((
+                "bus load (exact bits)".into(),
+                exact * 100.0,
+                "% of 1 Mbit/s".into(),
+            ));
+            s.rows.push((
+                "bus load (worst-case stuffing)".into(),
+                worst * 100.0,
+                "% of 1 Mbit/s".into(),
+            ));
+            s
+        }
+    };
+    let mut r = r.with_figures(figures);
+    r.details.push(plant_stats_line(st));
+    Ok(r)
+}
+
+fn plant_stats_line(st: &PlantStats) -> String {
+    format!(
+        "plant: {} ticks, {} actuator frames missing, {} stale, {:.2} s wall ({:.0} cycles/s)",
         st.ticks,
         st.missing,
         st.stale,
         st.wall.as_secs_f64(),
         st.cycles_per_second()
-    );
-    println!(
-        "  bus load seen by the plant: {:.1} % exact, {:.1} % worst-case stuffing (1 Mbit/s)",
-        exact * 100.0,
-        worst * 100.0
-    );
-    if let Some((p50, p99, max)) = st.jitter_us {
-        println!("  tick lateness: p50 {p50:.0} µs  p99 {p99:.0} µs  max {max:.0} µs");
-    }
+    )
 }
 
-/// Runs the plant node for `--seconds`.
+/// Runs the plant node for `--seconds`, then reports what it saw.
 pub fn plant(a: PlantArgs) -> Result<()> {
     let model = a.plant.load()?;
+    a.report.check()?;
+    check_seconds(Some(a.seconds))?;
     let sc = match &a.scenario {
         Some(s) => Some(Scenario::new(scenarios(s)?[0], &model)?),
         None => None,
     };
     let mut bus = open(&a.bus)?;
     let stop = stop_on_ctrl_c();
-    let (st, _) = plant_loop(&a, bus.as_mut(), &model, sc.as_ref(), &stop)?;
-    print_plant_stats(&st);
-    Ok(())
+    let plan = FaultPlan::default();
+    let (st, mut rec) = plant_loop(
+        &a,
+        bus.as_mut(),
+        &model,
+        sc.as_ref(),
+        &stop,
+        (plan.clone(), None, None),
+    )?;
+    let ticks = (a.seconds * 1000.0).round() as u64;
+    let title = format!(
+        "plant node {} on {} ({}, {})",
+        a.bus.node,
+        a.bus.bus,
+        a.plant.label(),
+        if a.bus.realtime {
+            "real time"
+        } else {
+            "lockstep"
+        }
+    );
+    let mut r = plant_report(
+        title,
+        ticks,
+        &st,
+        &mut rec,
+        sc.as_ref(),
+        None,
+        None,
+        vec![],
+        &plan,
+        a.sensor_timeout_us,
+        &a.report,
+        stop.load(Ordering::Relaxed) && st.ticks < ticks,
+    )?;
+    r.files = [&a.csv, &a.candump]
+        .into_iter()
+        .flatten()
+        .map(|p| p.display().to_string())
+        .collect();
+    print_report(&r, a.report.json);
+    verdicts(&[r])
 }
 
 /// `hil-host supervise`.
@@ -415,9 +617,14 @@ pub struct SuperviseArgs {
     /// Send gains even if the stability guard refuses them.
     #[arg(long)]
     pub force: bool,
-    /// Stop sending after this many ticks (to watch the card's watchdog react).
+    /// Stop sending after this many ticks (to watch the card's watchdog react): `supervise`
+    /// exits as a crashed supervisor would; in `run` the supervisor thread falls silent.
     #[arg(long)]
     pub die_after: Option<u64>,
+    /// The card's sensor timeout, µs (sent with the gains; the card's default is 3000).
+    /// A card that drives and hears no sensor frame for longer faults with SensorTimeout.
+    #[arg(long)]
+    pub sensor_timeout_us: Option<u32>,
     /// No live telemetry line.
     #[arg(long)]
     pub quiet: bool,
@@ -458,8 +665,10 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
         sc.rate_hz = r;
     }
     if let Some(s) = a.seconds {
+        check_seconds(Some(s))?;
         sc.duration_s = s;
     }
+    sc.gains.sensor_timeout_us = a.sensor_timeout_us;
     let entries = sc.gains.entries(&sc.scale)?;
     if let Err(e) = gains::check(&entries, sc.mode) {
         if a.force {
@@ -539,7 +748,7 @@ pub struct RunArgs {
     /// Experiment, gains and setpoints (as for `supervise`).
     #[command(flatten)]
     pub sup: SuperviseArgs,
-    /// Seed of the sensor noise.
+    /// Seed of the sensor noise (and of injected losses).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Write the 1 kHz recording here.
@@ -551,32 +760,104 @@ pub struct RunArgs {
     /// Write a PNG plot here.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Inject a fault (repeatable; see below).
+    #[arg(long, value_name = "SPEC")]
+    pub inject: Vec<String>,
+    #[command(flatten)]
+    pub report: ReportArgs,
+}
+
+/// Checks that the bus and the clock can produce the faults asked for.
+fn check_plan(plan: &FaultPlan, bus: &BusSpec, realtime: bool) -> Result<()> {
+    if let (Some(i), BusSpec::SocketCan(iface)) = (plan.needs_inproc(), bus) {
+        bail!(
+            "--inject {i}: error frames and receive queues can only be injected on the \
+             in-process bus (--bus inproc), not on {iface}"
+        );
+    }
+    if let (Some(i), false) = (plan.has_delay(), realtime) {
+        bail!(
+            "--inject {i}: a delay needs a clock; threads in lockstep have none. Use \
+             --realtime, or `hil-host demo` (lockstep, delays in whole ticks)"
+        );
+    }
+    Ok(())
 }
 
 /// Card, plant and supervisor as threads, each with its own handle on the bus.
 pub fn run(a: RunArgs) -> Result<()> {
     let model = a.sup.plant.load()?;
+    a.report.check()?;
+    let plan = FaultPlan::parse(&a.inject)?;
+    let spec = BusSpec::parse(&a.sup.bus.bus).map_err(|e| anyhow!("{e}"))?;
+    let lockstep = !a.sup.bus.realtime;
+    check_plan(&plan, &spec, a.sup.bus.realtime)?;
     let (sc, mut sup) = build_supervisor(&a.sup, &model)?;
     let n = node(a.sup.bus.node)?;
-    let lockstep = !a.sup.bus.realtime;
     let stop = stop_on_ctrl_c();
-    // open all three handles first, so a missing interface fails before anything runs
-    let mut card_bus = open(&a.sup.bus)?;
-    let mut sup_bus = open(&a.sup.bus)?;
-    let mut plant_bus = open(&a.sup.bus)?;
+    // Open all three handles first, so a missing interface fails before anything runs. On
+    // the in-process bus the run has a hub of its own (with the receive queues asked for).
+    let hub = match (&spec, plan.rx_queue()) {
+        (BusSpec::Inproc(name), Some(q)) => Some(InprocHub::with_rx_capacity(name, q)),
+        (BusSpec::Inproc(name), None) => Some(InprocHub::new(name)),
+        _ => None,
+    };
+    let open_node = |who: &str| -> Result<Box<dyn CanBus>> {
+        match &hub {
+            Some(h) => Ok(Box::new(h.attach(who))),
+            None => open(&a.sup.bus),
+        }
+    };
+    let tick = Arc::new(AtomicU64::new(0));
+    let t0 = std::time::Instant::now();
+    let link = |who: Node, k: u64, bus: Box<dyn CanBus>| {
+        let clock = if lockstep {
+            LinkClock::Ticks(tick.clone())
+        } else {
+            LinkClock::Wall(t0)
+        };
+        let mut b = Impaired::new(
+            bus,
+            clock,
+            a.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k),
+        );
+        for f in plan.link_faults(who) {
+            b.add(f);
+        }
+        b
+    };
+    let mut card_bus = link(Node::Card, 1, open_node("card")?);
+    let mut sup_bus = link(Node::Supervisor, 3, open_node("supervisor")?);
+    let mut plant_bus = link(Node::Plant, 2, open_node("plant")?);
+    let mut silent: Vec<Window> = plan
+        .items
+        .iter()
+        .filter_map(|i| match i {
+            Injection::KillSupervisor(w) => Some(*w),
+            _ => None,
+        })
+        .collect();
+    if let Some(d) = a.sup.die_after {
+        silent.push(Window {
+            from: d,
+            until: None,
+        });
+    }
+    sup.set_silent_windows(silent);
     let done = Arc::new(AtomicBool::new(false));
     let card_thread = {
         let done = done.clone();
-        std::thread::spawn(move || -> Result<()> {
+        std::thread::spawn(move || -> Result<(CardNode, LinkStats)> {
             let mut card = CardNode::new(n, lockstep).map_err(|e| anyhow!("{e:?}"))?;
-            run_card(card_bus.as_mut(), &mut card, lockstep, &done)
+            run_card(&mut card_bus, &mut card, lockstep, &done)?;
+            Ok((card, card_bus.stats()))
         })
     };
     let sup_thread = {
         let done = done.clone();
-        std::thread::spawn(move || -> Result<Supervisor> {
-            run_supervisor(sup_bus.as_mut(), &mut sup, n, &done, 20, |_, _| {})?;
-            Ok(sup)
+        std::thread::spawn(move || -> Result<(Supervisor, LinkStats)> {
+            run_supervisor(&mut sup_bus, &mut sup, n, &done, 20, |_, _| {})?;
+            Ok((sup, sup_bus.stats()))
         })
     };
     let pa = PlantArgs {
@@ -588,41 +869,85 @@ pub fn run(a: RunArgs) -> Result<()> {
         csv: a.csv.clone(),
         candump: a.candump.clone(),
         timeout_ms: 200,
+        sensor_timeout_us: a.sup.sensor_timeout_us,
+        report: a.report.clone(),
         quiet: a.sup.quiet,
     };
-    let res = plant_loop(&pa, plant_bus.as_mut(), &model, Some(&sc), &stop);
+    let res = plant_loop(
+        &pa,
+        &mut plant_bus,
+        &model,
+        Some(&sc),
+        &stop,
+        (plan.clone(), hub.clone(), Some(tick.clone())),
+    );
     done.store(true, Ordering::SeqCst);
-    let sup = sup_thread
+    let (sup, sup_link) = sup_thread
         .join()
         .map_err(|_| anyhow!("supervisor thread panicked"))??;
-    card_thread
+    let (card, card_link) = card_thread
         .join()
         .map_err(|_| anyhow!("card thread panicked"))??;
-    let (st, rec) = res?;
-    let (exact, worst) = st.bus_load();
-    println!(
-        "\n{} on {} over {} ({})",
+    let (st, mut rec) = res?;
+    let ticks = (pa.seconds * 1000.0).round() as u64;
+    let c = card.card();
+    let title = format!(
+        "{} on {} over {} ({})",
         sc.kind.name(),
         a.sup.plant.label(),
         a.sup.bus.bus,
         if lockstep { "lockstep" } else { "real time" }
     );
-    println!("{}", summarize(&sc, &rec.rows, exact, worst).table());
-    print_plant_stats(&st);
-    for e in &sup.events {
-        if !matches!(e, Event::Committed) {
-            println!("  supervisor: {e:?}");
-        }
-    }
+    let mut r = plant_report(
+        title,
+        ticks,
+        &st,
+        &mut rec,
+        Some(&sc),
+        Some(CardFacts {
+            state: c.state(),
+            fault: c.fault(),
+            bus_warnings: c.bus_warnings(),
+            sensor_frames_lost: c.sensor_frames_lost(),
+        }),
+        Some(SupervisorFacts {
+            phase: sup.phase(),
+            committed: sup.committed(),
+            commit_attempts: sup.commit_attempts(),
+            events: sup.events.clone(),
+            bus_faults: sup.bus_faults().clone(),
+            recoveries: sup.recoveries(),
+        }),
+        vec![
+            (Node::Card, card_link),
+            (Node::Plant, plant_bus.stats()),
+            (Node::Supervisor, sup_link),
+        ],
+        &plan,
+        a.sup.sensor_timeout_us,
+        &a.report,
+        stop.load(Ordering::Relaxed) && st.ticks < ticks,
+    )?;
     if let Some(p) = &a.plot {
-        plot_run(
+        let csv = rec
+            .csv_path()
+            .ok_or_else(|| anyhow!("the recording was not kept"))?
+            .to_path_buf();
+        plot_recording(
             p,
             &format!("{} — {}", sc.kind.name(), a.sup.plant.label()),
-            &rec.rows,
+            &csv,
+            rec.tally().rows,
             sc.scale.gear_ratio,
         )?;
     }
-    Ok(())
+    r.files = [&a.csv, &a.candump, &a.plot]
+        .into_iter()
+        .flatten()
+        .map(|p| p.display().to_string())
+        .collect();
+    print_report(&r, a.report.json);
+    verdicts(&[r])
 }
 
 /// `hil-host replay`.
@@ -697,7 +1022,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     lab.run(|_, _| {})?;
     let wall = t0.elapsed().as_secs_f64();
     let ticks = lab.scenario.ticks() as f64;
-    let s = lab.summary();
+    let s = lab.summary()?;
     println!(
         "in-process bus, one thread, lockstep ({}):",
         a.plant.label()
@@ -712,6 +1037,13 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         s.get("bus load (exact bits)").unwrap_or(0.0),
         s.get("bus load (worst-case stuffing)").unwrap_or(0.0)
     );
+    if let Some((now, peak)) = crate::lab::mem::rss_bytes() {
+        println!(
+            "  memory: {:.1} MB resident, {:.1} MB at the peak (the recording streams to disk)",
+            now as f64 / 1e6,
+            peak as f64 / 1e6
+        );
+    }
     if let Some(bus) = &a.bus {
         let ra = RunArgs {
             sup: SuperviseArgs {
@@ -730,12 +1062,18 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 seconds: Some(a.seconds),
                 force: false,
                 die_after: None,
+                sensor_timeout_us: None,
                 quiet: true,
             },
             seed: 1,
             csv: None,
             candump: None,
             plot: None,
+            inject: vec![],
+            report: ReportArgs {
+                json: false,
+                max_loss: report::MAX_LOSS,
+            },
         };
         println!("\n{bus}, three threads, lockstep:");
         run(ra)?;

@@ -21,10 +21,10 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Zero-setup HIL demo: card + plant + supervisor on the in-process bus, summary, CSV, PNG.
-    #[command(after_help = lab::DEMO_EXAMPLES)]
+    #[command(after_help = format!("{}\n\n{}", lab::DEMO_EXAMPLES, lab::INJECT_HELP))]
     Demo(lab::DemoArgs),
     /// Card, plant and supervisor as threads over a bus (vcan0, can0 or inproc).
-    #[command(after_help = lab::RUN_EXAMPLES)]
+    #[command(after_help = format!("{}\n\n{}", lab::RUN_EXAMPLES, lab::INJECT_HELP))]
     Run(lab::RunArgs),
     /// The card node alone on a bus (the controller crate, fed only by frames).
     #[command(after_help = lab::CARD_EXAMPLES)]
@@ -59,6 +59,12 @@ pub fn main() -> std::process::ExitCode {
     match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
+            // A run that did not end clean has printed its report; say how it ended and
+            // exit with its code (1, or 130 when interrupted). Anything else is an error: 2.
+            if let Some(f) = e.downcast_ref::<crate::lab::report::RunFailed>() {
+                eprintln!("hil-host: the run ended {}", f.verdict.word());
+                return std::process::ExitCode::from(f.verdict.exit_code());
+            }
             eprintln!("error: {}", error_text(&e));
             std::process::ExitCode::from(2)
         }

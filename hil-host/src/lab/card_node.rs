@@ -10,7 +10,7 @@ use controller::card::node::CardNode as Node;
 use controller::card::{Card, ConfigError};
 use controller::proto::{Message, NodeId};
 
-use crate::bus::{BusFault, ClassicFrame};
+use crate::bus::{BusFault, ClassicFrame, Severity};
 
 /// What to send after handling one frame.
 #[derive(Debug, Default)]
@@ -68,14 +68,21 @@ impl CardNode {
         out
     }
 
-    /// The bus reported a fault that needs a safe state (bus-off, error-passive).
+    /// The card's controller reported an error frame. Bus-off, a TX timeout or error-passive
+    /// (either direction, as the firmware does) mean the card can no longer be sure to be
+    /// heard: its safe state (`BusError`, torque off at the next tick). Warning level,
+    /// protocol errors, a missing ACK or a receive overflow are counted by the card
+    /// ([`controller::card::Card::bus_warning`]). Recovery and counter reports change
+    /// nothing.
     pub fn on_bus_fault(&mut self, fault: &BusFault) -> Outgoing {
         let me = self.node.node();
         let mut out = Outgoing::default();
-        if fault.requires_safe_state() {
+        if fault.requires_safe_state() || fault.is_error_passive() {
             let code = i32::try_from(fault.class_bits()).unwrap_or(i32::MAX);
             self.node
                 .on_bus_error(code, |m| push(&mut out.frames, me, m));
+        } else if fault.severity() == Severity::Warning {
+            self.node.on_bus_warning(|m| push(&mut out.frames, me, m));
         } else {
             self.node.flush(|m| push(&mut out.frames, me, m));
         }

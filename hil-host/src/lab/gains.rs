@@ -89,6 +89,10 @@ pub struct GainSet {
     pub watchdog_ms: u32,
     /// Watchdog reaction.
     pub watchdog_reaction: WatchdogReaction,
+    /// The card's sensor timeout, µs (`None`: the card's default, 3000 µs). A card that
+    /// drives the motor and hears no sensor frame for longer faults with `SensorTimeout`;
+    /// in real time on a machine that stalls, this is what such a stall runs into.
+    pub sensor_timeout_us: Option<u32>,
     /// Telemetry every N ticks.
     pub telemetry_divider: u16,
     /// Fraction of the §2.9 discrete PD bound the card admits (its `stability_margin`).
@@ -113,6 +117,7 @@ impl Default for GainSet {
             friction: None,
             watchdog_ms: 200,
             watchdog_reaction: WatchdogReaction::QuickStop,
+            sensor_timeout_us: None,
             telemetry_divider: 1,
             stability_fraction: 0.5,
         }
@@ -198,6 +203,9 @@ impl GainSet {
                 si::fraction(p::STABILITY_MARGIN, self.stability_fraction).map_err(si_err)?,
             ),
         ];
+        if let Some(us) = self.sensor_timeout_us {
+            e.push((p::SENSOR_TIMEOUT, i32::try_from(us).unwrap_or(i32::MAX)));
+        }
         match self.friction {
             Some(f) => e.extend([
                 (p::FRICTION_ENABLE, 1),

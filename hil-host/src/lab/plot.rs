@@ -88,3 +88,22 @@ pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Resu
     root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
 }
+
+/// Points a plot of a recording draws at most (a 1200-pixel-wide panel shows no more).
+pub const PLOT_POINTS: u64 = 20_000;
+
+/// Plots a recording on disk with [`plot_run`], reading every k-th of its `rows` rows so
+/// that at most [`PLOT_POINTS`] are held in memory, however long the run.
+pub fn plot_recording(
+    png: &Path,
+    title: &str,
+    csv: &Path,
+    rows: u64,
+    gear_ratio: f64,
+) -> Result<()> {
+    let every = rows.div_ceil(PLOT_POINTS).max(1) as usize;
+    let kept = super::recorder::read_rows(csv)?
+        .step_by(every)
+        .collect::<Result<Vec<Row>>>()?;
+    plot_run(png, title, &kept, gear_ratio)
+}

@@ -1,24 +1,35 @@
-//! Recordings: a 1 kHz CSV with units in the column names (every tick, nothing dropped,
-//! flushed on Ctrl-C and at the end) and the raw frames as a candump `-L` log.
+//! Recordings: a 1 kHz CSV with units in the column names (every tick, nothing dropped) and
+//! the raw frames — error frames included — as a candump `-L` log.
 //!
 //! The recorder sits beside the plant node: it knows the true state of the simulated joint
 //! and sees every frame on the bus (setpoints, actuator, telemetry, heartbeats, faults), so
 //! it can log what the card was told, what it commanded and what the joint did.
+//!
+//! Memory stays bounded however long a run lasts: rows go to disk as they come (buffered,
+//! flushed at least once a wall-clock second, at the end and when dropped), into the CSV the
+//! caller asked for or, without one, a temporary file of the same format. Only the last
+//! [`RECENT_ROWS`] rows stay in memory; summaries and plots read the file back
+//! ([`read_rows`]). What the run's report needs — rows, faulted ticks, missing commands,
+//! error frames by class, the card's fault frames — is counted as it is written
+//! ([`Tally`]), so the report, the CSV and the candump log agree by construction.
 
+use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
-use controller::proto::{Message, NodeId, State};
+use anyhow::{anyhow, bail, Context, Result};
+use controller::proto::{FaultCode, Message, NodeId, State};
 
-use crate::bus::ClassicFrame;
+use crate::bus::{BusFault, ClassicFrame};
 use crate::candump::{CandumpWriter, Timestamp};
 
+use super::inject::BusEvent;
 use super::plant_node::{PlantNode, MOTOR_TORQUE_LSB};
 
 /// The CSV header (the single definition of the recording's columns and units).
-pub const COLUMNS: [&str; 15] = [
+pub const COLUMNS: [&str; 16] = [
     "time_s",
     "seq",
     "setpoint_pos_rad",
@@ -34,7 +45,17 @@ pub const COLUMNS: [&str; 15] = [
     "state",
     "flags",
     "fault",
+    "cmd_missing",
 ];
+
+/// Rows kept in memory (the latest; the whole recording is on disk).
+pub const RECENT_ROWS: usize = 1000;
+
+/// Longest wall time between two flushes of the files.
+pub const FLUSH_EVERY: Duration = Duration::from_secs(1);
+
+/// Card fault frames remembered one by one (the rest are only counted).
+pub const FAULTS_KEPT: usize = 32;
 
 /// One tick of a recording (motor quantities at the motor, output quantities at the output).
 #[derive(Clone, Debug, PartialEq)]
@@ -69,9 +90,65 @@ pub struct Row {
     pub flags: u8,
     /// The actuator frame had the fault bit.
     pub fault: bool,
+    /// No actuator frame answered this tick (the plant held zero torque).
+    pub cmd_missing: bool,
 }
 
-/// Collects rows and frames; writes them as they come.
+/// A card fault frame the recorder saw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SeenFault {
+    /// When, s.
+    pub time_s: f64,
+    /// Which.
+    pub code: FaultCode,
+    /// Its detail word.
+    pub detail: i32,
+}
+
+/// What was recorded, counted as it was written.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Tally {
+    /// CSV rows.
+    pub rows: u64,
+    /// Rows whose actuator frame carried the fault bit.
+    pub faulted_rows: u64,
+    /// Time of the first of them.
+    pub first_faulted_s: Option<f64>,
+    /// Rows without an actuator frame.
+    pub missing_rows: u64,
+    /// Time of the last row.
+    pub last_time_s: f64,
+    /// Data frames seen (each is a candump line when logging).
+    pub frames: u64,
+    /// Error frames seen, by class (each is a candump line when logging).
+    pub error_frames: BTreeMap<BusEvent, u64>,
+    /// Error frames that only report recovery or counters.
+    pub info_frames: u64,
+    /// Time of the first error frame of each class.
+    pub first_error_s: BTreeMap<BusEvent, f64>,
+    /// The first [`FAULTS_KEPT`] fault frames of this node's card.
+    pub card_faults: Vec<SeenFault>,
+    /// All of them.
+    pub card_fault_frames: u64,
+}
+
+impl Tally {
+    /// Error frames of every class.
+    pub fn error_frames_total(&self) -> u64 {
+        self.error_frames.values().sum::<u64>() + self.info_frames
+    }
+}
+
+/// Where the rows go.
+#[derive(Debug)]
+struct Sink {
+    path: PathBuf,
+    out: BufWriter<File>,
+    /// A temporary file (no CSV asked for), deleted with the recorder.
+    _temp: Option<tempfile::TempPath>,
+}
+
+/// Collects rows and frames; writes them as they come. See the module docs.
 #[derive(Debug)]
 pub struct Recorder {
     node: NodeId,
@@ -81,10 +158,12 @@ pub struct Recorder {
     setpoint_torque: f64,
     vel_est: f64,
     state: State,
-    /// All rows so far (for the summary and plots).
+    /// The latest rows, at most [`RECENT_ROWS`] (oldest first; the last is the newest).
     pub rows: Vec<Row>,
-    csv: Option<(PathBuf, BufWriter<File>)>,
+    csv: Option<Sink>,
     candump: Option<(PathBuf, CandumpWriter<BufWriter<File>>, String)>,
+    last_flush: Instant,
+    tally: Tally,
 }
 
 impl Recorder {
@@ -102,19 +181,69 @@ impl Recorder {
             rows: Vec::new(),
             csv: None,
             candump: None,
+            last_flush: Instant::now(),
+            tally: Tally::default(),
         }
     }
 
-    /// Also write the CSV to `path` (header now, a line per tick).
+    fn open_sink(path: &Path, temp: Option<tempfile::TempPath>) -> Result<Sink> {
+        let f = File::options()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let mut out = BufWriter::new(f);
+        writeln!(out, "{}", COLUMNS.join(","))
+            .with_context(|| format!("writing {}", path.display()))?;
+        Ok(Sink {
+            path: path.to_path_buf(),
+            out,
+            _temp: temp,
+        })
+    }
+
+    /// Writes the CSV to `path` (header now, a line per tick). Call before the first tick.
     pub fn write_csv(&mut self, path: &Path) -> Result<()> {
-        let f = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-        let mut w = BufWriter::new(f);
-        writeln!(w, "{}", COLUMNS.join(","))?;
-        self.csv = Some((path.to_path_buf(), w));
+        if self.tally.rows > 0 {
+            bail!(
+                "{}: the recording already has {} rows elsewhere; choose the CSV before the first tick",
+                path.display(),
+                self.tally.rows
+            );
+        }
+        self.csv = Some(Self::open_sink(path, None)?);
         Ok(())
     }
 
-    /// Also write every frame to a candump `-L` log at `path` as interface `iface`.
+    /// Without a CSV of its own, the recording goes to a temporary file (deleted with the
+    /// recorder) so that summaries and plots can read it back. Called by the lab before its
+    /// first tick; a no-op once a file is chosen.
+    pub fn keep_on_disk(&mut self) -> Result<()> {
+        if self.csv.is_some() {
+            return Ok(());
+        }
+        if self.tally.rows > 0 {
+            bail!("the recording already has rows that were not kept on disk");
+        }
+        let temp = tempfile::Builder::new()
+            .prefix("jointlab-rec-")
+            .suffix(".csv")
+            .tempfile()
+            .context("cannot create a temporary recording file")?
+            .into_temp_path();
+        let path = temp.to_path_buf();
+        self.csv = Some(Self::open_sink(&path, Some(temp))?);
+        Ok(())
+    }
+
+    /// The file the rows go to, if any.
+    pub fn csv_path(&self) -> Option<&Path> {
+        self.csv.as_ref().map(|s| s.path.as_path())
+    }
+
+    /// Also write every frame, error frames included, to a candump `-L` log at `path` as
+    /// interface `iface`.
     pub fn write_candump(&mut self, path: &Path, iface: &str) -> Result<()> {
         let f = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
         self.candump = Some((
@@ -125,15 +254,21 @@ impl Recorder {
         Ok(())
     }
 
+    /// What was recorded so far.
+    pub fn tally(&self) -> &Tally {
+        &self.tally
+    }
+
+    fn stamp(t: f64) -> Timestamp {
+        Timestamp::from_duration(Duration::from_secs_f64(t.max(0.0)))
+    }
+
     /// Sees one frame on the bus at time `t` (s).
     pub fn observe(&mut self, t: f64, f: &ClassicFrame) -> Result<()> {
+        self.tally.frames += 1;
         if let Some((path, w, iface)) = &mut self.candump {
-            w.write_frame(
-                Timestamp::from_duration(std::time::Duration::from_secs_f64(t.max(0.0))),
-                iface,
-                f,
-            )
-            .with_context(|| format!("writing {}", path.display()))?;
+            w.write_frame(Self::stamp(t), iface, f)
+                .with_context(|| format!("writing {}", path.display()))?;
         }
         let Ok((node, m)) = Message::decode(f) else {
             return Ok(());
@@ -150,8 +285,34 @@ impl Recorder {
                 self.vel_est = f64::from(t.velocity) * 8.0 * self.motor_rad_per_count
             }
             Message::Heartbeat(h) => self.state = h.state,
-            Message::Fault(_) => self.state = State::FaultReaction,
+            Message::Fault(x) => {
+                self.state = State::FaultReaction;
+                self.tally.card_fault_frames += 1;
+                if self.tally.card_faults.len() < FAULTS_KEPT {
+                    self.tally.card_faults.push(SeenFault {
+                        time_s: t,
+                        code: x.code,
+                        detail: x.detail,
+                    });
+                }
+            }
             _ => {}
+        }
+        Ok(())
+    }
+
+    /// Sees one error frame at time `t` (s): logged to candump and counted by class.
+    pub fn observe_fault(&mut self, t: f64, fault: &BusFault) -> Result<()> {
+        if let Some((path, w, iface)) = &mut self.candump {
+            w.write_fault(Self::stamp(t), iface, fault)
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+        match BusEvent::classify(fault) {
+            Some(c) => {
+                *self.tally.error_frames.entry(c).or_default() += 1;
+                self.tally.first_error_s.entry(c).or_insert(t);
+            }
+            None => self.tally.info_frames += 1,
         }
         Ok(())
     }
@@ -184,38 +345,47 @@ impl Recorder {
             state: self.state,
             flags: cmd.map(|a| a.limits.bits()).unwrap_or(0),
             fault: cmd.is_some_and(|a| a.fault),
+            cmd_missing: cmd.is_none(),
         };
-        if let Some((path, w)) = &mut self.csv {
-            writeln!(
-                w,
-                "{:.3},{},{:.9},{:.4},{:.9},{:.9},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{},{},{}",
-                row.time_s,
-                row.seq,
-                row.setpoint_pos_rad,
-                row.setpoint_torque_nm,
-                row.motor_pos_rad,
-                row.output_pos_rad,
-                row.motor_vel_est_rad_s,
-                row.motor_vel_rad_s,
-                row.output_vel_rad_s,
-                row.torque_cmd_nm,
-                row.torque_sensor_nm,
-                row.output_torque_true_nm,
-                row.state.name(),
-                row.flags,
-                u8::from(row.fault)
-            )
-            .with_context(|| format!("writing {}", path.display()))?;
+        if let Some(sink) = &mut self.csv {
+            write_row(&mut sink.out, &row)
+                .with_context(|| format!("writing {}", sink.path.display()))?;
+        }
+        let tl = &mut self.tally;
+        tl.rows += 1;
+        tl.last_time_s = t;
+        if row.fault {
+            tl.faulted_rows += 1;
+            tl.first_faulted_s.get_or_insert(t);
+        }
+        if row.cmd_missing {
+            tl.missing_rows += 1;
+        }
+        if self.rows.len() >= 2 * RECENT_ROWS {
+            self.rows.drain(..RECENT_ROWS);
         }
         self.rows.push(row);
+        if self.last_flush.elapsed() >= FLUSH_EVERY {
+            self.flush()?;
+        }
         Ok(())
     }
 
-    /// Flushes both files (called at the end and on Ctrl-C).
+    /// The latest rows, at most [`RECENT_ROWS`].
+    pub fn recent(&self) -> &[Row] {
+        let n = self.rows.len();
+        self.rows
+            .get(n.saturating_sub(RECENT_ROWS)..)
+            .unwrap_or_default()
+    }
+
+    /// Flushes both files (at least every [`FLUSH_EVERY`], at the end, on Ctrl-C, on drop).
     pub fn flush(&mut self) -> Result<()> {
-        if let Some((path, w)) = &mut self.csv {
-            w.flush()
-                .with_context(|| format!("flushing {}", path.display()))?;
+        self.last_flush = Instant::now();
+        if let Some(sink) = &mut self.csv {
+            sink.out
+                .flush()
+                .with_context(|| format!("flushing {}", sink.path.display()))?;
         }
         if let Some((path, w, _)) = &mut self.candump {
             w.flush()
@@ -223,10 +393,199 @@ impl Recorder {
         }
         Ok(())
     }
+
+    /// Flushes, then reads the whole recording back, row by row.
+    pub fn read_back(&mut self) -> Result<RowReader> {
+        self.flush()?;
+        let path = self
+            .csv_path()
+            .ok_or_else(|| anyhow!("the recording was not kept on disk"))?;
+        read_rows(path)
+    }
 }
 
 impl Drop for Recorder {
     fn drop(&mut self) {
         let _ = self.flush();
+    }
+}
+
+fn write_row(w: &mut impl Write, row: &Row) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "{:.3},{},{:.9},{:.4},{:.9},{:.9},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{},{},{},{}",
+        row.time_s,
+        row.seq,
+        row.setpoint_pos_rad,
+        row.setpoint_torque_nm,
+        row.motor_pos_rad,
+        row.output_pos_rad,
+        row.motor_vel_est_rad_s,
+        row.motor_vel_rad_s,
+        row.output_vel_rad_s,
+        row.torque_cmd_nm,
+        row.torque_sensor_nm,
+        row.output_torque_true_nm,
+        row.state.name(),
+        row.flags,
+        u8::from(row.fault),
+        u8::from(row.cmd_missing),
+    )
+}
+
+/// Reads a recording written by [`Recorder`] row by row (bounded memory).
+#[derive(Debug)]
+pub struct RowReader {
+    path: PathBuf,
+    lines: std::io::Lines<BufReader<File>>,
+    line_no: usize,
+}
+
+/// Opens a recording and checks its header.
+pub fn read_rows(path: &Path) -> Result<RowReader> {
+    let f = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut lines = BufReader::new(f).lines();
+    let header = lines
+        .next()
+        .transpose()
+        .with_context(|| format!("reading {}", path.display()))?
+        .unwrap_or_default();
+    if header != COLUMNS.join(",") {
+        bail!(
+            "{} line 1: not a jointlab recording header (expected `{}`)",
+            path.display(),
+            COLUMNS.join(",")
+        );
+    }
+    Ok(RowReader {
+        path: path.to_path_buf(),
+        lines,
+        line_no: 1,
+    })
+}
+
+fn parse_row(line: &str) -> std::result::Result<Row, String> {
+    let v: Vec<&str> = line.split(',').collect();
+    if v.len() != COLUMNS.len() {
+        return Err(format!("{} fields, expected {}", v.len(), COLUMNS.len()));
+    }
+    let f = |i: usize| -> std::result::Result<f64, String> {
+        v[i].parse::<f64>()
+            .map_err(|_| format!("column `{}`: `{}` is not a number", COLUMNS[i], v[i]))
+    };
+    let int = |i: usize| -> std::result::Result<u8, String> {
+        v[i].parse::<u8>()
+            .map_err(|_| format!("column `{}`: `{}` is not a byte", COLUMNS[i], v[i]))
+    };
+    let flag = |i: usize| -> std::result::Result<bool, String> {
+        match v[i] {
+            "0" => Ok(false),
+            "1" => Ok(true),
+            x => Err(format!("column `{}`: `{x}` is not 0 or 1", COLUMNS[i])),
+        }
+    };
+    Ok(Row {
+        time_s: f(0)?,
+        seq: int(1)?,
+        setpoint_pos_rad: f(2)?,
+        setpoint_torque_nm: f(3)?,
+        motor_pos_rad: f(4)?,
+        output_pos_rad: f(5)?,
+        motor_vel_est_rad_s: f(6)?,
+        motor_vel_rad_s: f(7)?,
+        output_vel_rad_s: f(8)?,
+        torque_cmd_nm: f(9)?,
+        torque_sensor_nm: f(10)?,
+        output_torque_true_nm: f(11)?,
+        state: State::from_name(v[12])
+            .ok_or_else(|| format!("column `state`: unknown state `{}`", v[12]))?,
+        flags: int(13)?,
+        fault: flag(14)?,
+        cmd_missing: flag(15)?,
+    })
+}
+
+impl Iterator for RowReader {
+    type Item = Result<Row>;
+
+    fn next(&mut self) -> Option<Result<Row>> {
+        let line = match self.lines.next()? {
+            Ok(l) => l,
+            Err(e) => return Some(Err(anyhow!("reading {}: {e}", self.path.display()))),
+        };
+        self.line_no += 1;
+        Some(
+            parse_row(&line)
+                .map_err(|e| anyhow!("{} line {}: {e}", self.path.display(), self.line_no)),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(k: u64) -> Row {
+        Row {
+            time_s: k as f64 / 1000.0,
+            seq: k as u8,
+            setpoint_pos_rad: 0.125,
+            setpoint_torque_nm: -1.5,
+            motor_pos_rad: 3.25,
+            output_pos_rad: 0.108333333,
+            motor_vel_est_rad_s: 1.5,
+            motor_vel_rad_s: -2.25,
+            output_vel_rad_s: 0.5,
+            torque_cmd_nm: 0.1234,
+            torque_sensor_nm: 2.5,
+            output_torque_true_nm: 0.25,
+            state: State::FaultReaction,
+            flags: 5,
+            fault: k % 2 == 0,
+            cmd_missing: k % 3 == 0,
+        }
+    }
+
+    #[test]
+    fn rows_round_trip_through_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("r.csv");
+        let mut s = Recorder::open_sink(&p, None).unwrap();
+        for k in 0..10 {
+            write_row(&mut s.out, &row(k)).unwrap();
+        }
+        s.out.flush().unwrap();
+        let back: Vec<Row> = read_rows(&p).unwrap().map(|r| r.unwrap()).collect();
+        assert_eq!(back, (0..10).map(row).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_broken_line_is_named_with_its_file_and_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.csv");
+        let good = {
+            let mut v = Vec::new();
+            write_row(&mut v, &row(1)).unwrap();
+            String::from_utf8(v).unwrap()
+        };
+        std::fs::write(
+            &p,
+            format!(
+                "{}\n{good}{}",
+                COLUMNS.join(","),
+                good.replace("FaultReaction", "Wobbly")
+            ),
+        )
+        .unwrap();
+        let rows: Vec<_> = read_rows(&p).unwrap().collect();
+        assert!(rows[0].is_ok());
+        let e = rows[1].as_ref().unwrap_err().to_string();
+        assert!(
+            e.contains("bad.csv line 3") && e.contains("`Wobbly`"),
+            "{e}"
+        );
+        std::fs::write(&p, "a,b\n").unwrap();
+        let e = read_rows(&p).unwrap_err().to_string();
+        assert!(e.contains("line 1"), "{e}");
     }
 }

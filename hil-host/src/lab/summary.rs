@@ -52,212 +52,443 @@ pub fn fit_line(x: &[f64], y: &[f64]) -> (f64, f64) {
     (my - b * mx, b)
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-    if n == 0 {
-        0.0
-    } else {
-        (s / n as f64).sqrt()
-    }
+/// Computes the scenario's figures from rows in memory. `bus_load` is the measured
+/// exact-bit load (0..1).
+pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64) -> Summary {
+    let pass = || Ok::<_, anyhow::Error>(rows.iter().cloned().map(Ok));
+    summarize_with(sc, pass, bus_load, bus_load_worst, None).unwrap_or_default()
 }
 
-/// Computes the scenario's figures. `bus_load` is the measured exact-bit load (0..1).
-pub fn summarize(sc: &Scenario, rows: &[Row], bus_load: f64, bus_load_worst: f64) -> Summary {
+/// Computes the scenario's figures from a recording, reading it in passes (one for most
+/// scenarios, three for a step: its target, then its final value, then the times measured
+/// against it), so memory does not grow with the length of the run. `pass` opens the
+/// recording from its start. `withhold`: the scenario's figures are not computed (the
+/// reason is in the report); peak torque and bus load still are.
+pub fn summarize_with<I, F>(
+    sc: &Scenario,
+    mut pass: F,
+    bus_load: f64,
+    bus_load_worst: f64,
+    withhold: Option<&str>,
+) -> anyhow::Result<Summary>
+where
+    F: FnMut() -> anyhow::Result<I>,
+    I: Iterator<Item = anyhow::Result<Row>>,
+{
     let mut s = Summary::default();
-    let n = sc.scale.gear_ratio;
-    let run: Vec<&Row> = rows.iter().filter(|r| r.time_s > SETTLE_S).collect();
-    let peak = rows
-        .iter()
-        .map(|r| r.torque_cmd_nm.abs())
-        .fold(0.0, f64::max);
-    // Tracking of the position setpoint by the motor encoder (colocated), output rad.
-    let err = |r: &&Row| r.setpoint_pos_rad - r.motor_pos_rad / n;
-    match sc.kind {
-        ScenarioKind::Stiffness => {
-            let crank: Vec<&&Row> = run.iter().filter(|r| r.time_s > SETTLE_S + 0.3).collect();
-            let x: Vec<f64> = crank
-                .iter()
-                .map(|r| r.output_pos_rad - r.setpoint_pos_rad)
-                .collect();
-            let y: Vec<f64> = crank.iter().map(|r| -r.torque_sensor_nm).collect();
-            let (_, k) = fit_line(&x, &y);
-            s.push("desired stiffness", sc.desired, "N·m/rad (output)");
-            s.push("achieved stiffness", k, "N·m/rad (output)");
-            s.push("achieved / desired", k / sc.desired, "");
-            // Loop area ∮τ dθ over the recording: energy lost per crank cycle.
-            let area: f64 = crank
-                .windows(2)
-                .map(|w| {
-                    let d = w[1].output_pos_rad - w[0].output_pos_rad;
-                    -0.5 * (w[1].torque_sensor_nm + w[0].torque_sensor_nm) * d
-                })
-                .sum();
-            s.push("loop area (work lost)", area, "J");
-            let travel = x.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-                - x.iter().cloned().fold(f64::INFINITY, f64::min);
-            s.push("deflection travel", travel, "rad (output)");
-        }
-        ScenarioKind::Damper => {
-            // Mean torque and speed on the steady part of each 1 s crank segment.
-            let (mut xs, mut ys) = (vec![], vec![]);
-            for seg in 0..6 {
-                let t0 = SETTLE_S + seg as f64 + 0.4;
-                let t1 = SETTLE_S + seg as f64 + 0.95;
-                let part: Vec<&&Row> = run
-                    .iter()
-                    .filter(|r| r.time_s > t0 && r.time_s < t1)
-                    .collect();
-                if part.is_empty() {
-                    continue;
-                }
-                let m = part.len() as f64;
-                xs.push(part.iter().map(|r| r.output_vel_rad_s).sum::<f64>() / m);
-                ys.push(part.iter().map(|r| -r.torque_sensor_nm).sum::<f64>() / m);
-            }
-            // Split Coulomb (sign) from viscous by fitting τ = c·sign(ω) + B·ω.
-            let (b, c) = fit_viscous_coulomb(&xs, &ys);
-            s.push("desired damping", sc.desired, "N·m·s/rad (output)");
-            s.push("achieved damping", b, "N·m·s/rad (output)");
-            s.push("achieved / desired", b / sc.desired, "");
-            s.push("Coulomb offset", c, "N·m (output)");
-        }
-        ScenarioKind::Step => {
-            let target = run.last().map(|r| r.setpoint_pos_rad).unwrap_or(0.0);
-            let pos = |r: &Row| r.motor_pos_rad / n;
-            // The step instant: the first sample whose setpoint is nearer the target than the
-            // start; the response starts from where the joint was one sample before.
-            let k_step = rows
-                .iter()
-                .position(|r| (r.setpoint_pos_rad - target).abs() < 0.5 * target.abs())
-                .unwrap_or(0);
-            let from_step = rows.get(k_step..).unwrap_or_default();
-            let start = rows.get(k_step.saturating_sub(1)).map_or(0.0, pos);
-            let t0 = from_step.first().map_or(0.0, |r| r.time_s);
-            // The value the response ends at (mean of the last 0.2 s): a PD against friction
-            // stops short of the setpoint, so "settled" and "at the setpoint" differ.
-            let tail: Vec<f64> = from_step.iter().rev().take(200).map(pos).collect();
-            let fin = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
-            let span = fin - start;
-            let dir = (target - start).signum();
-            let furthest = from_step
-                .iter()
-                .map(|r| (pos(r) - start) * dir)
-                .fold(f64::NEG_INFINITY, f64::max);
-            let over = if target != start {
-                ((furthest - (target - start).abs()) / (target - start).abs() * 100.0).max(0.0)
-            } else {
-                0.0
-            };
-            // Rise 10 → 90 % and settling to ±2 % of the final value (MATLAB `stepinfo`'s
-            // convention), and settling into ±2 % of the setpoint (never, if friction holds
-            // the joint outside it: the thesis's error band ≈ stiction / K). The bands are
-            // at least two encoder counts wide.
-            let floor = 2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / n;
-            let crossing = |frac: f64| {
-                from_step
-                    .iter()
-                    .find(|r| (pos(r) - start) * span.signum() >= frac * span.abs())
-                    .map_or(f64::NAN, |r| r.time_s)
-            };
-            let rise = crossing(0.9) - crossing(0.1);
-            let settling = |centre: f64, band: f64| match from_step
-                .iter()
-                .rposition(|r| (pos(r) - centre).abs() > band)
-            {
-                None => 0.0,
-                Some(i) => from_step.get(i + 1).map_or(f64::NAN, |r| r.time_s - t0),
-            };
-            let settle_final = settling(fin, (0.02 * span.abs()).max(floor));
-            let settle_set = settling(target, (0.02 * (target - start).abs()).max(floor));
-            s.push("step size", target - start, "rad (output)");
-            s.push("overshoot", over, "%");
-            s.push("rise time (10–90 % of final)", rise, "s");
-            s.push("settling time (2 % of final)", settle_final, "s");
-            s.push("settling time (2 % of setpoint)", settle_set, "s");
-            s.push("steady-state error", target - fin, "rad (output)");
-        }
-        ScenarioKind::Wall => {
-            let late: Vec<&&Row> = run
-                .iter()
-                .filter(|r| r.time_s > SETTLE_S + sc.duration_s - 0.5)
-                .collect();
-            let m = late.len().max(1) as f64;
-            let mean_err = late
-                .iter()
-                .map(|r| r.setpoint_torque_nm - r.torque_sensor_nm)
-                .sum::<f64>()
-                / m;
-            s.push("desired contact torque", sc.desired, "N·m (output)");
-            s.push("steady force error", mean_err, "N·m");
-            s.push(
-                "force error RMS (last 0.5 s)",
-                rms(late
-                    .iter()
-                    .map(|r| r.setpoint_torque_nm - r.torque_sensor_nm)),
-                "N·m",
-            );
-        }
-        ScenarioKind::Backlash => {
-            let late: Vec<&&Row> = run
-                .iter()
-                .filter(|r| r.time_s > SETTLE_S + sc.duration_s - 1.0)
-                .collect();
-            let pk = |f: &dyn Fn(&Row) -> f64| {
-                let hi = late.iter().map(|r| f(r)).fold(f64::NEG_INFINITY, f64::max);
-                let lo = late.iter().map(|r| f(r)).fold(f64::INFINITY, f64::min);
-                (hi - lo).to_degrees()
-            };
-            s.push(
-                "motor limit cycle p-p",
-                pk(&|r| r.motor_pos_rad / n),
-                "deg (output)",
-            );
-            s.push(
-                "output limit cycle p-p",
-                pk(&|r| r.output_pos_rad),
-                "deg (output)",
-            );
-        }
-        ScenarioKind::Identify => {
-            // What makes a recording identifiable: reversals (friction's sign), a range of
-            // speeds (viscous vs Coulomb), travel (position-periodic effects).
-            let v: Vec<f64> = run.iter().map(|r| r.output_vel_rad_s).collect();
-            let reversals = v
-                .windows(2)
-                .filter(|w| w[0].signum() != w[1].signum() && w[0] != 0.0)
-                .count();
-            let vmax = v.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
-            let (lo, hi) = run
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
-                    (l.min(r.output_pos_rad), h.max(r.output_pos_rad))
-                });
-            s.push("velocity reversals", reversals as f64, "");
-            s.push("peak output speed", vmax, "rad/s");
-            s.push("output travel", hi - lo, "rad");
+    let mut acc = Pass1::new(sc);
+    for r in pass()? {
+        acc.add(&r?);
+    }
+    if withhold.is_none() {
+        acc.figures(sc, &mut s, &mut pass)?;
+        if matches!(
+            sc.kind,
+            ScenarioKind::Stiffness
+                | ScenarioKind::Step
+                | ScenarioKind::Backlash
+                | ScenarioKind::Identify
+        ) {
+            s.push("tracking error RMS", acc.tracking.rms(), "rad (output)");
         }
     }
-    if matches!(
-        sc.kind,
-        ScenarioKind::Stiffness
-            | ScenarioKind::Step
-            | ScenarioKind::Backlash
-            | ScenarioKind::Identify
-    ) {
-        s.push(
-            "tracking error RMS",
-            rms(run.iter().map(err)),
-            "rad (output)",
-        );
-    }
-    s.push("peak torque command", peak, "N·m (motor)");
+    s.push("peak torque command", acc.peak, "N·m (motor)");
     s.push("bus load (exact bits)", bus_load * 100.0, "% of 1 Mbit/s");
     s.push(
         "bus load (worst-case stuffing)",
         bus_load_worst * 100.0,
         "% of 1 Mbit/s",
     );
-    s
+    Ok(s)
+}
+
+/// Running sum of squares.
+#[derive(Clone, Copy, Debug, Default)]
+struct Rms {
+    sum: f64,
+    n: usize,
+}
+
+impl Rms {
+    fn add(&mut self, x: f64) {
+        self.sum += x * x;
+        self.n += 1;
+    }
+    fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// Running least-squares line (Welford's updates, as stable as the two-pass form).
+#[derive(Clone, Copy, Debug, Default)]
+struct Line {
+    n: f64,
+    mx: f64,
+    my: f64,
+    sxx: f64,
+    sxy: f64,
+}
+
+impl Line {
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1.0;
+        let dx = x - self.mx;
+        self.mx += dx / self.n;
+        self.my += (y - self.my) / self.n;
+        self.sxx += dx * (x - self.mx);
+        self.sxy += dx * (y - self.my);
+    }
+    /// Slope of y = a + b·x (0 when undetermined), as [`fit_line`].
+    fn slope(&self) -> f64 {
+        if self.n < 2.0 || self.sxx <= 0.0 {
+            0.0
+        } else {
+            self.sxy / self.sxx
+        }
+    }
+}
+
+/// Running minimum and maximum.
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    lo: f64,
+    hi: f64,
+}
+
+impl Default for Span {
+    fn default() -> Self {
+        Span {
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Span {
+    fn add(&mut self, x: f64) {
+        self.lo = self.lo.min(x);
+        self.hi = self.hi.max(x);
+    }
+    fn width(&self) -> f64 {
+        self.hi - self.lo
+    }
+}
+
+/// Everything one pass over the rows gives.
+#[derive(Debug)]
+struct Pass1 {
+    n: f64,
+    duration_s: f64,
+    rows: usize,
+    peak: f64,
+    tracking: Rms,
+    last_run_setpoint: Option<f64>,
+    // stiffness
+    crank: Line,
+    area: f64,
+    prev_crank: Option<(f64, f64)>,
+    deflection: Span,
+    // damper: (Σω, Στ, n) per 1 s segment
+    segments: [(f64, f64, usize); 6],
+    // wall
+    force_err: Rms,
+    force_err_sum: f64,
+    // backlash
+    motor_late: Span,
+    output_late: Span,
+    // identify
+    prev_vel: Option<f64>,
+    reversals: usize,
+    vmax: f64,
+    travel: Span,
+}
+
+impl Pass1 {
+    fn new(sc: &Scenario) -> Self {
+        Pass1 {
+            n: sc.scale.gear_ratio,
+            duration_s: sc.duration_s,
+            rows: 0,
+            peak: 0.0,
+            tracking: Rms::default(),
+            last_run_setpoint: None,
+            crank: Line::default(),
+            area: 0.0,
+            prev_crank: None,
+            deflection: Span::default(),
+            segments: [(0.0, 0.0, 0); 6],
+            force_err: Rms::default(),
+            force_err_sum: 0.0,
+            motor_late: Span::default(),
+            output_late: Span::default(),
+            prev_vel: None,
+            reversals: 0,
+            vmax: 0.0,
+            travel: Span::default(),
+        }
+    }
+
+    fn add(&mut self, r: &Row) {
+        self.rows += 1;
+        self.peak = self.peak.max(r.torque_cmd_nm.abs());
+        self.last_run_setpoint = None;
+        if r.time_s <= SETTLE_S {
+            return;
+        }
+        self.last_run_setpoint = Some(r.setpoint_pos_rad);
+        // Tracking of the position setpoint by the motor encoder (colocated), output rad.
+        self.tracking
+            .add(r.setpoint_pos_rad - r.motor_pos_rad / self.n);
+        // stiffness: the cranked part
+        if r.time_s > SETTLE_S + 0.3 {
+            let x = r.output_pos_rad - r.setpoint_pos_rad;
+            self.crank.add(x, -r.torque_sensor_nm);
+            self.deflection.add(x);
+            // Loop area ∮τ dθ over the recording: energy lost per crank cycle.
+            if let Some((pos, tau)) = self.prev_crank {
+                self.area += -0.5 * (r.torque_sensor_nm + tau) * (r.output_pos_rad - pos);
+            }
+            self.prev_crank = Some((r.output_pos_rad, r.torque_sensor_nm));
+        }
+        // damper: the steady part of each 1 s crank segment
+        for (seg, acc) in self.segments.iter_mut().enumerate() {
+            let t0 = SETTLE_S + seg as f64 + 0.4;
+            let t1 = SETTLE_S + seg as f64 + 0.95;
+            if r.time_s > t0 && r.time_s < t1 {
+                acc.0 += r.output_vel_rad_s;
+                acc.1 += -r.torque_sensor_nm;
+                acc.2 += 1;
+            }
+        }
+        // wall: the last 0.5 s
+        if r.time_s > SETTLE_S + self.duration_s - 0.5 {
+            let e = r.setpoint_torque_nm - r.torque_sensor_nm;
+            self.force_err.add(e);
+            self.force_err_sum += e;
+        }
+        // backlash: the last second
+        if r.time_s > SETTLE_S + self.duration_s - 1.0 {
+            self.motor_late.add(r.motor_pos_rad / self.n);
+            self.output_late.add(r.output_pos_rad);
+        }
+        // identify
+        let v = r.output_vel_rad_s;
+        if let Some(w0) = self.prev_vel {
+            if w0.signum() != v.signum() && w0 != 0.0 {
+                self.reversals += 1;
+            }
+        }
+        self.prev_vel = Some(v);
+        self.vmax = self.vmax.max(v.abs());
+        self.travel.add(r.output_pos_rad);
+    }
+
+    fn figures<I, F>(&self, sc: &Scenario, s: &mut Summary, pass: &mut F) -> anyhow::Result<()>
+    where
+        F: FnMut() -> anyhow::Result<I>,
+        I: Iterator<Item = anyhow::Result<Row>>,
+    {
+        match sc.kind {
+            ScenarioKind::Stiffness => {
+                let k = self.crank.slope();
+                s.push("desired stiffness", sc.desired, "N·m/rad (output)");
+                s.push("achieved stiffness", k, "N·m/rad (output)");
+                s.push("achieved / desired", k / sc.desired, "");
+                s.push("loop area (work lost)", self.area, "J");
+                s.push("deflection travel", self.deflection.width(), "rad (output)");
+            }
+            ScenarioKind::Damper => {
+                let (mut xs, mut ys) = (vec![], vec![]);
+                for &(w, tau, m) in self.segments.iter().filter(|seg| seg.2 > 0) {
+                    xs.push(w / m as f64);
+                    ys.push(tau / m as f64);
+                }
+                // Split Coulomb (sign) from viscous by fitting τ = c·sign(ω) + B·ω.
+                let (b, c) = fit_viscous_coulomb(&xs, &ys);
+                s.push("desired damping", sc.desired, "N·m·s/rad (output)");
+                s.push("achieved damping", b, "N·m·s/rad (output)");
+                s.push("achieved / desired", b / sc.desired, "");
+                s.push("Coulomb offset", c, "N·m (output)");
+            }
+            ScenarioKind::Step => {
+                let target = self.last_run_setpoint.unwrap_or(0.0);
+                step_figures(sc, s, target, self.rows, pass)?;
+            }
+            ScenarioKind::Wall => {
+                let m = self.force_err.n.max(1) as f64;
+                s.push("desired contact torque", sc.desired, "N·m (output)");
+                s.push("steady force error", self.force_err_sum / m, "N·m");
+                s.push("force error RMS (last 0.5 s)", self.force_err.rms(), "N·m");
+            }
+            ScenarioKind::Backlash => {
+                s.push(
+                    "motor limit cycle p-p",
+                    self.motor_late.width().to_degrees(),
+                    "deg (output)",
+                );
+                s.push(
+                    "output limit cycle p-p",
+                    self.output_late.width().to_degrees(),
+                    "deg (output)",
+                );
+            }
+            ScenarioKind::Identify => {
+                // What makes a recording identifiable: reversals (friction's sign), a range
+                // of speeds (viscous vs Coulomb), travel (position-periodic effects).
+                s.push("velocity reversals", self.reversals as f64, "");
+                s.push("peak output speed", self.vmax, "rad/s");
+                s.push("output travel", self.travel.width(), "rad");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// When a response last left its band: the time of the sample after its last excursion
+/// (NaN while the latest sample is outside).
+#[derive(Clone, Copy, Debug)]
+struct Settling {
+    outside: bool,
+    pending: bool,
+    after: f64,
+}
+
+impl Default for Settling {
+    fn default() -> Self {
+        Settling {
+            outside: false,
+            pending: false,
+            after: f64::NAN,
+        }
+    }
+}
+
+impl Settling {
+    fn add(&mut self, outside: bool, t: f64) {
+        if self.pending {
+            self.after = t;
+            self.pending = false;
+        }
+        if outside {
+            self.outside = true;
+            self.after = f64::NAN;
+            self.pending = true;
+        }
+    }
+}
+
+/// The step response's figures, in two more passes over the rows (`n` of them).
+fn step_figures<I, F>(
+    sc: &Scenario,
+    s: &mut Summary,
+    target: f64,
+    n: usize,
+    pass: &mut F,
+) -> anyhow::Result<()>
+where
+    F: FnMut() -> anyhow::Result<I>,
+    I: Iterator<Item = anyhow::Result<Row>>,
+{
+    let g = sc.scale.gear_ratio;
+    let pos = |r: &Row| r.motor_pos_rad / g;
+    // Pass 2. The step instant: the first sample whose setpoint is nearer the target than
+    // the start; the response starts from where the joint was one sample before. The value
+    // the response ends at is the mean of its last 0.2 s: a PD against friction stops short
+    // of the setpoint, so "settled" and "at the setpoint" differ.
+    let mut k_step: Option<usize> = None;
+    let (mut start, mut t0) = (0.0, 0.0);
+    let mut prev: Option<f64> = None;
+    let (mut tail_sum, mut tail_n) = (0.0, 0usize);
+    let mut furthest_pos = f64::NEG_INFINITY;
+    let mut furthest_neg = f64::NEG_INFINITY;
+    for (i, r) in pass()?.enumerate() {
+        let r = r?;
+        if k_step.is_none() && (r.setpoint_pos_rad - target).abs() < 0.5 * target.abs() {
+            k_step = Some(i);
+            start = prev.unwrap_or(pos(&r));
+            t0 = r.time_s;
+        }
+        prev = Some(pos(&r));
+        if let Some(k) = k_step {
+            if i >= k.max(n.saturating_sub(200)) {
+                tail_sum += pos(&r);
+                tail_n += 1;
+            }
+            furthest_pos = furthest_pos.max(pos(&r) - start);
+            furthest_neg = furthest_neg.max(start - pos(&r));
+        }
+    }
+    if k_step.is_none() {
+        // No sample near the target: the response is taken from the first row.
+        let mut first = true;
+        for r in pass()? {
+            let r = r?;
+            if first {
+                start = pos(&r);
+                t0 = r.time_s;
+                first = false;
+            }
+            furthest_pos = furthest_pos.max(pos(&r) - start);
+            furthest_neg = furthest_neg.max(start - pos(&r));
+        }
+        k_step = Some(0);
+        tail_n = 0;
+        for (i, r) in pass()?.enumerate() {
+            if i >= n.saturating_sub(200) {
+                tail_sum += pos(&r?);
+                tail_n += 1;
+            }
+        }
+    }
+    let k_step = k_step.unwrap_or(0);
+    let fin = tail_sum / tail_n.max(1) as f64;
+    let span = fin - start;
+    let dir = (target - start).signum();
+    let furthest = if dir < 0.0 {
+        furthest_neg
+    } else {
+        furthest_pos
+    };
+    let over = if target != start {
+        ((furthest - (target - start).abs()) / (target - start).abs() * 100.0).max(0.0)
+    } else {
+        0.0
+    };
+    // Pass 3. Rise 10 → 90 % and settling to ±2 % of the final value (MATLAB `stepinfo`'s
+    // convention), and settling into ±2 % of the setpoint (never, if friction holds the
+    // joint outside it: the thesis's error band ≈ stiction / K). The bands are at least two
+    // encoder counts wide.
+    let floor = 2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / g;
+    let band_final = (0.02 * span.abs()).max(floor);
+    let band_set = (0.02 * (target - start).abs()).max(floor);
+    let (mut c10, mut c90) = (f64::NAN, f64::NAN);
+    let mut settle_final = Settling::default();
+    let mut settle_set = Settling::default();
+    for r in pass()?.skip(k_step) {
+        let r = r?;
+        let p = pos(&r);
+        let moved = (p - start) * span.signum();
+        if c10.is_nan() && moved >= 0.1 * span.abs() {
+            c10 = r.time_s;
+        }
+        if c90.is_nan() && moved >= 0.9 * span.abs() {
+            c90 = r.time_s;
+        }
+        settle_final.add((p - fin).abs() > band_final, r.time_s);
+        settle_set.add((p - target).abs() > band_set, r.time_s);
+    }
+    let settling = |st: Settling| if st.outside { st.after - t0 } else { 0.0 };
+    s.push("step size", target - start, "rad (output)");
+    s.push("overshoot", over, "%");
+    s.push("rise time (10–90 % of final)", c90 - c10, "s");
+    s.push("settling time (2 % of final)", settling(settle_final), "s");
+    s.push("settling time (2 % of setpoint)", settling(settle_set), "s");
+    s.push("steady-state error", target - fin, "rad (output)");
+    Ok(())
 }
 
 /// LS fit τ = c·sign(ω) + B·ω; returns (B, c).
@@ -348,6 +579,7 @@ mod tests {
                     state: controller::proto::State::Enabled,
                     flags: 0,
                     fault: false,
+                    cmd_missing: false,
                 }
             })
             .collect();

@@ -7,14 +7,25 @@
 //! as card and plant and a run is reproducible) and returns the messages to send;
 //! [`Supervisor::on_message`] takes what the card says.
 
+use std::collections::BTreeMap;
+
 use controller::proto::params::{self as p};
 use controller::proto::{
     ControlWord, FaultCode, LimitFlags, Message, Mode, NodeId, ParamCommit, ParamStatus,
     ParamWrite, ReplyTo, SetChecksum, SetpointForce, SetpointMotion, State,
 };
 
+use crate::bus::BusFault;
+
 use super::gains::JointScale;
+use super::inject::{BusEvent, Window};
 use super::trajectory::Trajectory;
+
+/// Ticks the supervisor waits for the answer to a commit before it sends the set again.
+pub const COMMIT_TIMEOUT_TICKS: u64 = 100;
+
+/// Commits of one gain set before the supervisor gives up and says so.
+pub const COMMIT_ATTEMPTS: u32 = 3;
 
 /// What the supervisor commands with its trajectory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -127,6 +138,17 @@ pub struct Supervisor {
     /// The last setpoint sent (output units).
     pub last_setpoint: f64,
     silent: bool,
+    silent_windows: Vec<Window>,
+    tick: u64,
+    sent_at: Option<u64>,
+    resend: bool,
+    attempts: u32,
+    bus_faults: BTreeMap<BusEvent, u64>,
+    recover: bool,
+    recovering: bool,
+    recoveries: u32,
+    heartbeats: u64,
+    acted_on: u64,
 }
 
 impl Supervisor {
@@ -162,6 +184,17 @@ impl Supervisor {
             events: vec![],
             last_setpoint: 0.0,
             silent: false,
+            silent_windows: vec![],
+            tick: 0,
+            sent_at: None,
+            resend: false,
+            attempts: 0,
+            bus_faults: BTreeMap::new(),
+            recover: false,
+            recovering: false,
+            recoveries: 0,
+            heartbeats: 0,
+            acted_on: 0,
         }
     }
 
@@ -173,6 +206,91 @@ impl Supervisor {
     /// Stop sending anything (simulates a supervisor crash, for watchdog tests).
     pub fn go_silent(&mut self) {
         self.silent = true;
+    }
+
+    /// Ticks in which the supervisor sends and hears nothing (a stalled or killed
+    /// supervisor process; `--inject kill-supervisor@T[+D]`).
+    pub fn set_silent_windows(&mut self, windows: Vec<Window>) {
+        self.silent_windows = windows;
+    }
+
+    /// Whether the supervisor is silent at tick `k`.
+    pub fn silent_at(&self, k: u64) -> bool {
+        self.silent || self.silent_windows.iter().any(|w| w.contains(k))
+    }
+
+    /// After a fault, clear it and arm again, then go on streaming (a soak run's operator)
+    /// instead of stopping. Off by default.
+    pub fn set_recovery(&mut self, on: bool) {
+        self.recover = on;
+    }
+
+    /// Faults cleared and the card re-armed so far (recovery mode).
+    pub fn recoveries(&self) -> u32 {
+        self.recoveries
+    }
+
+    /// Whether the card accepted the gain set.
+    pub fn committed(&self) -> bool {
+        self.events.iter().any(|e| matches!(e, Event::Committed))
+    }
+
+    /// Commits of the gain set sent so far.
+    pub fn commit_attempts(&self) -> u32 {
+        self.attempts
+    }
+
+    /// Error frames heard, by class.
+    pub fn bus_faults(&self) -> &BTreeMap<BusEvent, u64> {
+        &self.bus_faults
+    }
+
+    /// An error frame reached the supervisor's controller: counted (its frames are sent
+    /// again by CAN; what is lost for good shows up as an unanswered commit or a fault).
+    pub fn on_bus_fault(&mut self, f: &BusFault) {
+        if let Some(c) = BusEvent::classify(f) {
+            *self.bus_faults.entry(c).or_default() += 1;
+        }
+    }
+
+    fn gain_set(&mut self, tick: u64, out: &mut Vec<Message>) {
+        self.attempts += 1;
+        self.sent_at = Some(tick);
+        self.resend = false;
+        self.set_seq = self.set_seq.wrapping_add(1);
+        for &(id, v) in &self.entries {
+            out.push(Message::ParamWrite(ParamWrite {
+                param_id: id,
+                value: v,
+                set_seq: self.set_seq,
+            }));
+        }
+        let sum = SetChecksum::of(&self.entries);
+        out.push(Message::ParamCommit(ParamCommit {
+            set_seq: self.set_seq,
+            count: sum.count(),
+            crc: sum.crc(),
+        }));
+    }
+
+    /// Recovery (see [`Supervisor::set_recovery`]): one step per new heartbeat, from what
+    /// it says — clear the fault, shut down, enable, then stream again.
+    fn recover_step(&mut self, out: &mut Vec<Message>) {
+        if self.heartbeats == self.acted_on {
+            return;
+        }
+        self.acted_on = self.heartbeats;
+        let cw = match self.telemetry.state {
+            Some(State::Fault) => ControlWord::ClearFault,
+            Some(State::Disabled) => ControlWord::Shutdown,
+            Some(State::Ready) => {
+                self.recovering = false;
+                self.recoveries += 1;
+                ControlWord::Enable(self.mode)
+            }
+            _ => ControlWord::KeepAlive,
+        };
+        out.push(Message::ControlWord(cw));
     }
 
     fn setpoint(&mut self, t: f64) -> Message {
@@ -200,27 +318,28 @@ impl Supervisor {
 
     /// Messages to send at control tick `tick` (1 ms each).
     pub fn on_tick(&mut self, tick: u64) -> Vec<Message> {
-        if self.silent {
+        self.tick = tick;
+        if self.silent_at(tick) {
             return vec![];
         }
         let mut out = vec![];
         match self.phase {
             Phase::Configuring => {
-                if tick == 1 || (self.set_seq == 0) {
-                    self.set_seq = self.set_seq.wrapping_add(1);
-                    for &(id, v) in &self.entries {
-                        out.push(Message::ParamWrite(ParamWrite {
-                            param_id: id,
-                            value: v,
-                            set_seq: self.set_seq,
-                        }));
-                    }
-                    let sum = SetChecksum::of(&self.entries);
-                    out.push(Message::ParamCommit(ParamCommit {
-                        set_seq: self.set_seq,
-                        count: sum.count(),
-                        crc: sum.crc(),
-                    }));
+                // A set whose commit is not answered (writes or the reply lost on the way)
+                // goes again; after COMMIT_ATTEMPTS the supervisor stops and says so.
+                let due = self.resend
+                    || self
+                        .sent_at
+                        .is_none_or(|t| tick.saturating_sub(t) >= COMMIT_TIMEOUT_TICKS);
+                if due && self.attempts >= COMMIT_ATTEMPTS {
+                    self.events.push(Event::Refused(format!(
+                        "no answer to {} commits of the gain set, {COMMIT_TIMEOUT_TICKS} ms \
+                         apart (frames lost between supervisor and card?)",
+                        self.attempts
+                    )));
+                    self.phase = Phase::Stopped;
+                } else if due {
+                    self.gain_set(tick, &mut out);
                 } else if tick.is_multiple_of(50) {
                     out.push(Message::ControlWord(ControlWord::KeepAlive));
                 }
@@ -245,6 +364,11 @@ impl Supervisor {
                 if self.stop_at.is_some_and(|s| k >= s) {
                     self.phase = Phase::Stopped;
                     out.push(Message::ControlWord(ControlWord::Disable));
+                } else if self.recovering {
+                    self.recover_step(&mut out);
+                    if !self.recovering {
+                        out.push(self.setpoint(k as f64 * 1e-3));
+                    }
                 } else if k.is_multiple_of(self.period_ticks) {
                     out.push(self.setpoint(k as f64 * 1e-3));
                 }
@@ -260,7 +384,7 @@ impl Supervisor {
 
     /// Takes a message from the bus (only this joint's are used).
     pub fn on_message(&mut self, node: NodeId, m: &Message) {
-        if node != self.node {
+        if node != self.node || self.silent_at(self.tick) {
             return;
         }
         let per_count = std::f64::consts::TAU / self.scale.motor_cpr;
@@ -271,12 +395,36 @@ impl Supervisor {
                     self.phase = Phase::Arming;
                 }
                 (_, ParamStatus::Ok) => {}
+                // Writes lost on the way: send the set again (counted in the attempts).
+                (
+                    ReplyTo::Commit,
+                    ParamStatus::SequenceMismatch
+                    | ParamStatus::CountMismatch
+                    | ParamStatus::ChecksumMismatch
+                    | ParamStatus::NothingStaged,
+                ) if self.phase == Phase::Configuring && self.attempts < COMMIT_ATTEMPTS => {
+                    self.resend = true;
+                }
                 (to, st) => {
                     let name = p::lookup(r.param_id).map(|d| d.name).unwrap_or("-");
-                    self.events.push(Event::Refused(format!(
-                        "{to:?} refused: {} (param `{name}`)",
-                        st.name()
-                    )));
+                    let lost = matches!(
+                        st,
+                        ParamStatus::SequenceMismatch
+                            | ParamStatus::CountMismatch
+                            | ParamStatus::ChecksumMismatch
+                            | ParamStatus::NothingStaged
+                    );
+                    self.events
+                        .push(Event::Refused(if to == ReplyTo::Commit && lost {
+                            format!(
+                            "commit refused {} time(s), last with {} (writes lost on the way to \
+                             the card?)",
+                            self.attempts,
+                            st.name()
+                        )
+                        } else {
+                            format!("{to:?} refused: {} (param `{name}`)", st.name())
+                        }));
                     if to == ReplyTo::Commit {
                         self.phase = Phase::Stopped;
                     }
@@ -291,11 +439,34 @@ impl Supervisor {
                 self.telemetry.output_torque = f64::from(t.output_torque) * 0.01;
                 self.telemetry.limits = t.limits;
             }
-            Message::Heartbeat(h) => self.telemetry.state = Some(h.state),
+            Message::Heartbeat(h) => {
+                self.telemetry.state = Some(h.state);
+                self.heartbeats += 1;
+                let faulted = matches!(h.state, State::FaultReaction | State::Fault);
+                if faulted && self.phase == Phase::Running && !self.recovering {
+                    // The card is in a fault whose frame this supervisor never heard.
+                    if self.recover {
+                        self.recovering = true;
+                    } else {
+                        let what = h.fault.map_or("?", |c| c.name());
+                        self.events.push(Event::Fault(format!(
+                            "the card's heartbeat reports {} ({what}); its fault frame was not heard",
+                            h.state.name()
+                        )));
+                        self.phase = Phase::Stopped;
+                    }
+                }
+            }
             Message::Fault(f) => {
                 self.events
                     .push(Event::Fault(fault_words(f.code, f.detail)));
-                self.phase = Phase::Stopped;
+                if self.recover && matches!(self.phase, Phase::Running | Phase::Arming) {
+                    self.phase = Phase::Running;
+                    self.started_at.get_or_insert(self.tick);
+                    self.recovering = true;
+                } else {
+                    self.phase = Phase::Stopped;
+                }
             }
             _ => {}
         }

@@ -6,17 +6,21 @@
 //! control behaviour does not depend on wall time or scheduling. In real time the plant ticks
 //! from a 1 kHz wall clock and reports late/missing actuator frames and period jitter.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use controller::proto::{Kind, Message, NodeId};
 
-use crate::bus::{BusError, CanBus, ClassicFrame};
+use crate::bus::{BusError, CanBus, ClassicFrame, InprocHub};
 
 use super::card_node::{kind_of, CardNode};
+use super::inject::{BusEvent, FaultPlan};
 use super::plant_node::PlantNode;
 use super::recorder::Recorder;
+use super::report::Lateness;
 use super::scenario::Scenario;
 use super::supervisor::{Phase, Supervisor};
 
@@ -43,8 +47,10 @@ pub struct PlantStats {
     pub stale: u64,
     /// Wall time of the loop.
     pub wall: Duration,
-    /// Real time only: tick-start lateness percentiles (p50, p99, max), µs.
-    pub jitter_us: Option<(f64, f64, f64)>,
+    /// Real time only: how late the ticks started.
+    pub lateness: Option<Lateness>,
+    /// Error frames the plant node heard, by class.
+    pub bus_faults: BTreeMap<BusEvent, u64>,
     /// Frames seen on the bus and their exact/worst-case bit counts.
     pub frames: u64,
     /// Sum of exact bit lengths of the frames seen plus the node's own.
@@ -74,17 +80,84 @@ fn account(stats: &mut PlantStats, f: &ClassicFrame) {
     stats.worst_bits += u64::from(crate::bus::bits::worst_case_bits_of(f));
 }
 
-fn percentile(v: &mut [f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
+/// Tick-start lateness in 10 µs bins up to 100 ms (and one bin beyond): p50/p99 to 10 µs,
+/// the maximum exactly, in 40 kB however long the run.
+#[derive(Clone, Debug)]
+pub struct LateHistogram {
+    bins: Vec<u32>,
+    over: u64,
+    n: u64,
+    max_us: f64,
+    worst_at_s: f64,
+    late: u64,
+}
+
+/// Width of one [`LateHistogram`] bin, µs.
+pub const LATE_BIN_US: f64 = 10.0;
+const LATE_BINS: usize = 10_000;
+
+impl Default for LateHistogram {
+    fn default() -> Self {
+        LateHistogram {
+            bins: vec![0; LATE_BINS],
+            over: 0,
+            n: 0,
+            max_us: 0.0,
+            worst_at_s: 0.0,
+            late: 0,
+        }
     }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let i = ((v.len() - 1) as f64 * q).round() as usize;
-    v[i.min(v.len() - 1)]
+}
+
+impl LateHistogram {
+    /// One tick that started `us` late at run time `t_s`.
+    pub fn add(&mut self, us: f64, t_s: f64) {
+        let us = us.max(0.0);
+        self.n += 1;
+        if us > self.max_us {
+            self.max_us = us;
+            self.worst_at_s = t_s;
+        }
+        if us > 500.0 {
+            self.late += 1;
+        }
+        match self.bins.get_mut((us / LATE_BIN_US) as usize) {
+            Some(b) => *b = b.saturating_add(1),
+            None => self.over += 1,
+        }
+    }
+
+    /// The `q` quantile (upper edge of its bin), µs.
+    pub fn quantile(&self, q: f64) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        let want = ((self.n as f64 * q).ceil() as u64).max(1);
+        let mut seen = 0u64;
+        for (i, &c) in self.bins.iter().enumerate() {
+            seen += u64::from(c);
+            if seen >= want {
+                return ((i + 1) as f64 * LATE_BIN_US).min(self.max_us);
+            }
+        }
+        self.max_us
+    }
+
+    /// The summary a report carries.
+    pub fn lateness(&self) -> Lateness {
+        Lateness {
+            p50_us: self.quantile(0.5),
+            p99_us: self.quantile(0.99),
+            max_us: self.max_us,
+            worst_at_s: self.worst_at_s,
+            late_ticks: self.late,
+            ticks: self.n,
+        }
+    }
 }
 
 /// How the plant loop runs.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct PlantLoop {
     /// Pacing.
     pub clock: Clock,
@@ -100,6 +173,14 @@ pub struct PlantLoop {
     /// card's watchdog can do its job). Must stay below [`LOCKSTEP_DEAD_PLANT`], or the card
     /// would take the plant's wait for a dead supervisor as a dead plant.
     pub supervisor_grace: Duration,
+    /// Injected faults: error frames (put on `hub` at their tick), plant stalls (the loop
+    /// sleeps: a stalled process; in lockstep the card notices only beyond
+    /// [`LOCKSTEP_DEAD_PLANT`]).
+    pub faults: FaultPlan,
+    /// The in-process hub the error frames go to.
+    pub hub: Option<InprocHub>,
+    /// The plant's tick, published for the other nodes' impaired links.
+    pub tick: Option<Arc<AtomicU64>>,
 }
 
 impl PlantLoop {
@@ -112,6 +193,9 @@ impl PlantLoop {
             ticks,
             supervisor_window: 100,
             supervisor_grace: Duration::from_millis(1000),
+            faults: FaultPlan::default(),
+            hub: None,
+            tick: None,
         }
     }
 }
@@ -143,11 +227,40 @@ pub fn run_plant(
     let mut st = PlantStats::default();
     let mut last_sup: Option<u64> = None;
     let mut sup_gone = false;
-    let t_start = Instant::now();
-    let mut lateness = Vec::new();
+    let mut t_start = Instant::now();
+    let mut late = LateHistogram::default();
+    let mut stalled = false;
+    recorder.keep_on_disk()?;
     while st.ticks < ticks && !stop.load(Ordering::Relaxed) {
         let k = st.ticks + 1;
         let t = k as f64 * 1e-3;
+        if let Some(tk) = &opts.tick {
+            tk.store(k, Ordering::Relaxed);
+        }
+        if let Some(hub) = &opts.hub {
+            for ev in opts.faults.bus_events_at(k) {
+                hub.inject_fault(ev.fault());
+            }
+        }
+        // An injected stall: the plant process sleeps through it, then carries on (in real
+        // time, late: it catches up with its schedule).
+        if opts.faults.plant_stalled(k) && !stalled {
+            stalled = true;
+            let mut n = 0u64;
+            while opts.faults.plant_stalled(k + n) {
+                n += 1;
+            }
+            let d = Duration::from_millis(n);
+            let until = Instant::now() + d;
+            while Instant::now() < until && !stop.load(Ordering::Relaxed) {
+                std::thread::sleep((until - Instant::now()).min(Duration::from_millis(10)));
+            }
+            if clock != Clock::RealTime {
+                // lockstep: the stall is wall time; the schedule does not move
+                t_start += d;
+            }
+        }
+        stalled &= opts.faults.plant_stalled(k);
         if let Some(sc) = scenario {
             let env = sc.environment(t);
             if env != plant.plant().environment() {
@@ -174,7 +287,9 @@ pub fn run_plant(
                             }
                         }
                         Ok(None) => {}
-                        Err(BusError::Fault { .. }) => {}
+                        Err(BusError::Fault { fault, .. }) => {
+                            fault_seen(&mut st, recorder, t, &fault)?;
+                        }
                         Err(e) => return Err(e.into()),
                     }
                 }
@@ -187,7 +302,10 @@ pub fn run_plant(
                 if due > now {
                     std::thread::sleep(due - now);
                 }
-                lateness.push(Instant::now().saturating_duration_since(due).as_secs_f64() * 1e6);
+                late.add(
+                    Instant::now().saturating_duration_since(due).as_secs_f64() * 1e6,
+                    t,
+                );
                 due + Duration::from_micros(1000)
             }
             Clock::Lockstep { timeout } => Instant::now() + timeout,
@@ -214,7 +332,10 @@ pub fn run_plant(
                     }
                 }
                 Ok(None) => break,
-                Err(BusError::Fault { .. }) => continue,
+                Err(BusError::Fault { fault, .. }) => {
+                    fault_seen(&mut st, recorder, t, &fault)?;
+                    continue;
+                }
                 Err(e) => return Err(e.into()),
             }
         }
@@ -229,14 +350,23 @@ pub fn run_plant(
     st.stale = plant.stale;
     st.wall = t_start.elapsed();
     if clock == Clock::RealTime {
-        st.jitter_us = Some((
-            percentile(&mut lateness, 0.5),
-            percentile(&mut lateness, 0.99),
-            lateness.iter().cloned().fold(0.0, f64::max),
-        ));
+        st.lateness = Some(late.lateness());
     }
     recorder.flush()?;
     Ok(st)
+}
+
+/// An error frame at the plant node: counted, and recorded (candump and tally).
+fn fault_seen(
+    st: &mut PlantStats,
+    recorder: &mut Recorder,
+    t: f64,
+    fault: &crate::bus::BusFault,
+) -> Result<()> {
+    if let Some(c) = BusEvent::classify(fault) {
+        *st.bus_faults.entry(c).or_default() += 1;
+    }
+    recorder.observe_fault(t, fault)
 }
 
 /// In lockstep, how long the plant may stay silent (wall time) before the card's sensor
@@ -299,8 +429,9 @@ pub fn run_card(
 }
 
 /// The supervisor loop: one `on_tick` per `Sensor` frame seen for its node, until the
-/// script ends (plus `linger` ticks) or `stop`. `die_after`: stop sending after that many
-/// ticks (watchdog demonstrations).
+/// script ends (plus `linger` ticks) or `stop`. Error frames are counted by the supervisor
+/// ([`Supervisor::on_bus_fault`]); its silent windows ([`Supervisor::set_silent_windows`])
+/// make it a killed supervisor for the card's watchdog.
 pub fn run_supervisor(
     bus: &mut dyn CanBus,
     sup: &mut Supervisor,
@@ -334,7 +465,7 @@ pub fn run_supervisor(
                 }
             }
             Ok(None) => {}
-            Err(BusError::Fault { .. }) => {}
+            Err(BusError::Fault { fault, .. }) => sup.on_bus_fault(&fault),
             Err(e) => return Err(e.into()),
         }
     }

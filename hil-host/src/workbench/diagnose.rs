@@ -184,7 +184,15 @@ fn scan(
 ) -> Option<Scan> {
     let t = p.trajectory();
     let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW {
-        search(kind, &t, x0, g0i, e, p.input_probe.as_deref(), p.input_noise_var)?
+        search(
+            kind,
+            &t,
+            x0,
+            g0i,
+            e,
+            p.input_probe.as_deref(),
+            p.input_noise_var,
+        )?
     } else {
         search_windowed(kind, p, &t, x0, g0i, e)?
     };

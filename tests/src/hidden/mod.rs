@@ -364,7 +364,8 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     if families == [Family::Backlash] && out.top.as_deref() == Some("compliance") {
         let mut m = model.clone();
         let run = refine::auto(&mut m, &pe, None, &opts, 3).map_err(|e| format!("--auto: {e}"))?;
-        let added: Vec<Option<String>> = run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
+        let added: Vec<Option<String>> =
+            run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
         out.backlash_after_compliance = Some(
             added.first() == Some(&Some("compliance".into()))
                 && added.get(1) == Some(&Some("backlash".into())),

@@ -189,8 +189,8 @@ impl Prepared {
         };
         p.input_instrument = instrument(&p);
         p.noise_probe = noise_probe(rec.len(), e, rec.dt, fc, Impulse::Position).map(Box::new);
-        p.input_probe = noise_probe(rec.len(), e, rec.dt, fc, Impulse::Input(intersample))
-            .map(Box::new);
+        p.input_probe =
+            noise_probe(rec.len(), e, rec.dt, fc, Impulse::Input(intersample)).map(Box::new);
         p
     }
 
@@ -206,8 +206,14 @@ impl Prepared {
         };
         p.input_instrument = instrument(&p);
         let edge = self.raw_offset;
-        p.input_probe = noise_probe(self.raw_input.len(), edge, self.dt, self.cutoff_hz, Impulse::Input(intersample))
-            .map(Box::new);
+        p.input_probe = noise_probe(
+            self.raw_input.len(),
+            edge,
+            self.dt,
+            self.cutoff_hz,
+            Impulse::Input(intersample),
+        )
+        .map(Box::new);
         p
     }
 
