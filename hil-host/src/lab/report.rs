@@ -183,6 +183,16 @@ pub struct Report {
     pub files: Vec<String>,
 }
 
+/// `k` of `n` as a percentage with the decimals a small share needs.
+fn share(k: u64, n: u64) -> String {
+    let p = pct(k, n);
+    if p > 0.0 && p < 0.1 {
+        format!("{p:.3} %")
+    } else {
+        format!("{p:.1} %")
+    }
+}
+
 fn pct(k: u64, n: u64) -> f64 {
     if n == 0 {
         0.0
@@ -273,10 +283,10 @@ impl Report {
             )
         });
         let faulted_line = format!(
-            "{} of {} ticks ({:.1} %) ran faulted{}",
+            "{} of {} ticks ({}) ran faulted{}",
             t.faulted_rows,
             t.rows,
-            pct(t.faulted_rows, t.rows),
+            share(t.faulted_rows, t.rows),
             t.first_faulted_s
                 .map(|s| format!(", from {s:.3} s"))
                 .unwrap_or_default()
@@ -382,7 +392,7 @@ impl Report {
             }
             if s.commit_attempts > 1 && s.committed {
                 details.push(format!(
-                    "the gain set was committed at attempt {} (frames lost on the way)",
+                    "the gain set was sent {} times before a commit was answered",
                     s.commit_attempts
                 ));
             }
@@ -396,6 +406,11 @@ impl Report {
         if !f.injected.is_empty() {
             details.push(format!("injected: {}", f.injected.join(", ")));
         }
+        let sup_heard = f
+            .supervisor
+            .as_ref()
+            .map_or(0, |s| s.bus_faults.values().sum::<u64>());
+        let plant_heard = f.plant_bus_faults.values().sum::<u64>();
         if t.error_frames_total() > 0 {
             let mut line = format!(
                 "bus error frames: {}{}",
@@ -409,24 +424,39 @@ impl Report {
             if t.info_frames > 0 {
                 let _ = write!(line, ", {} recovery/counter report(s)", t.info_frames);
             }
+            details.push(line);
+        }
+        if t.error_frames_total() > 0 || card_warnings > 0 || sup_heard > 0 || plant_heard > 0 {
+            // Each controller reports its own errors too (an overflow is the receiver's).
+            let mut heard = vec![];
             if let Some(c) = &f.card {
-                let _ = write!(line, "; the card counted {} bus warning(s)", c.bus_warnings);
+                heard.push(format!(
+                    "the card counted {} bus warning(s)",
+                    c.bus_warnings
+                ));
             }
             if let Some(s) = &f.supervisor {
-                let _ = write!(
-                    line,
-                    "; the supervisor heard {}",
-                    s.bus_faults.values().sum::<u64>()
-                );
+                heard.push(format!(
+                    "the supervisor heard {sup_heard}{}",
+                    if s.bus_faults.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", counts(&s.bus_faults))
+                    }
+                ));
             }
-            if !f.plant_bus_faults.is_empty() {
-                let _ = write!(
-                    line,
-                    ", the plant {}",
-                    f.plant_bus_faults.values().sum::<u64>()
-                );
-            }
-            details.push(line);
+            heard.push(format!(
+                "the plant {plant_heard}{}",
+                if f.plant_bus_faults.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", counts(&f.plant_bus_faults))
+                }
+            ));
+            details.push(format!(
+                "error frames heard by the nodes: {}",
+                heard.join("; ")
+            ));
         }
         let drops: Vec<String> = f
             .links
@@ -489,8 +519,8 @@ impl Report {
         }
         let withheld = match verdict {
             Verdict::Faulted => Some(format!(
-                "they would describe faulted data ({:.1} % of the ticks ran faulted)",
-                pct(t.faulted_rows, rows)
+                "they would describe faulted data ({} of the ticks ran faulted)",
+                share(t.faulted_rows, rows)
             )),
             Verdict::Incomplete => Some("the scenario did not run to its end".into()),
             Verdict::Interrupted => Some(format!(

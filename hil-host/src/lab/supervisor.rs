@@ -22,10 +22,14 @@ use super::inject::{BusEvent, Window};
 use super::trajectory::Trajectory;
 
 /// Ticks the supervisor waits for the answer to a commit before it sends the set again.
-pub const COMMIT_TIMEOUT_TICKS: u64 = 100;
+pub const COMMIT_TIMEOUT_TICKS: u64 = 250;
 
 /// Commits of one gain set before the supervisor gives up and says so.
 pub const COMMIT_ATTEMPTS: u32 = 3;
+
+/// Recovery mode: ticks after a control word before a heartbeat is taken to show its
+/// effect (the card's heartbeat period, 100 ms, and a margin).
+pub const RECOVERY_SETTLE_TICKS: u64 = 150;
 
 /// What the supervisor commands with its trajectory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -147,6 +151,7 @@ pub struct Supervisor {
     recover: bool,
     recovering: bool,
     recoveries: u32,
+    last_command: u64,
     heartbeats: u64,
     acted_on: u64,
 }
@@ -193,6 +198,7 @@ impl Supervisor {
             recover: false,
             recovering: false,
             recoveries: 0,
+            last_command: 0,
             heartbeats: 0,
             acted_on: 0,
         }
@@ -273,23 +279,29 @@ impl Supervisor {
         }));
     }
 
-    /// Recovery (see [`Supervisor::set_recovery`]): one step per new heartbeat, from what
-    /// it says — clear the fault, shut down, enable, then stream again.
-    fn recover_step(&mut self, out: &mut Vec<Message>) {
-        if self.heartbeats == self.acted_on {
+    /// Recovery (see [`Supervisor::set_recovery`]): one step per heartbeat that came after
+    /// the last command had time to act ([`RECOVERY_SETTLE_TICKS`]), from what it says —
+    /// clear the fault, shut down, enable — until it says `Enabled` (a command lost on the
+    /// way is simply sent again).
+    fn recover_step(&mut self, tick: u64, out: &mut Vec<Message>) {
+        if self.heartbeats == self.acted_on
+            || tick.saturating_sub(self.last_command) < RECOVERY_SETTLE_TICKS
+        {
             return;
         }
         self.acted_on = self.heartbeats;
         let cw = match self.telemetry.state {
             Some(State::Fault) => ControlWord::ClearFault,
             Some(State::Disabled) => ControlWord::Shutdown,
-            Some(State::Ready) => {
+            Some(State::Ready) => ControlWord::Enable(self.mode),
+            Some(State::Enabled) => {
                 self.recovering = false;
                 self.recoveries += 1;
-                ControlWord::Enable(self.mode)
+                return;
             }
-            _ => ControlWord::KeepAlive,
+            _ => return,
         };
+        self.last_command = tick;
         out.push(Message::ControlWord(cw));
     }
 
@@ -351,6 +363,7 @@ impl Supervisor {
                     ControlWord::Enable(self.mode)
                 };
                 self.arm_step += 1;
+                self.last_command = tick;
                 out.push(Message::ControlWord(cw));
                 if self.arm_step == 2 {
                     self.phase = Phase::Running;
@@ -365,7 +378,7 @@ impl Supervisor {
                     self.phase = Phase::Stopped;
                     out.push(Message::ControlWord(ControlWord::Disable));
                 } else if self.recovering {
-                    self.recover_step(&mut out);
+                    self.recover_step(tick, &mut out);
                     if !self.recovering {
                         out.push(self.setpoint(k as f64 * 1e-3));
                     }
@@ -443,18 +456,22 @@ impl Supervisor {
                 self.telemetry.state = Some(h.state);
                 self.heartbeats += 1;
                 let faulted = matches!(h.state, State::FaultReaction | State::Fault);
-                if faulted && self.phase == Phase::Running && !self.recovering {
+                let settled = self.tick.saturating_sub(self.last_command) >= RECOVERY_SETTLE_TICKS;
+                if self.recover
+                    && self.phase == Phase::Running
+                    && settled
+                    && !matches!(h.state, State::Enabled | State::QuickStop)
+                {
+                    // Not driving although it should (a fault, or an arming command lost).
+                    self.recovering = true;
+                } else if faulted && self.phase == Phase::Running && !self.recover {
                     // The card is in a fault whose frame this supervisor never heard.
-                    if self.recover {
-                        self.recovering = true;
-                    } else {
-                        let what = h.fault.map_or("?", |c| c.name());
-                        self.events.push(Event::Fault(format!(
-                            "the card's heartbeat reports {} ({what}); its fault frame was not heard",
-                            h.state.name()
-                        )));
-                        self.phase = Phase::Stopped;
-                    }
+                    let what = h.fault.map_or("?", |c| c.name());
+                    self.events.push(Event::Fault(format!(
+                        "the card's heartbeat reports {} ({what}); its fault frame was not heard",
+                        h.state.name()
+                    )));
+                    self.phase = Phase::Stopped;
                 }
             }
             Message::Fault(f) => {

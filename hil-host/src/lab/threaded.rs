@@ -267,8 +267,10 @@ pub fn run_plant(
                 plant.plant_mut().set_environment(env)?;
             }
         }
-        // Pace on the supervisor (lockstep): wait for it to catch up within its window.
-        if let (Clock::Lockstep { .. }, Some(ls), false) = (clock, last_sup, sup_gone) {
+        // Pace on the supervisor (lockstep): wait for it to catch up within its window —
+        // from the start, so that a supervisor thread that starts late does not find
+        // hundreds of ticks queued before its first commit is even answered.
+        if let (Clock::Lockstep { .. }, ls, false) = (clock, last_sup.unwrap_or(0), sup_gone) {
             if opts.supervisor_window > 0 && k.saturating_sub(ls) > opts.supervisor_window {
                 let give_up = Instant::now() + opts.supervisor_grace;
                 loop {
