@@ -189,12 +189,11 @@ impl<B: CanBus> CanBus for Impaired<B> {
                     }
                 }
                 None => {
-                    if Instant::now() >= deadline
-                        && !self
-                            .held
-                            .front()
-                            .is_some_and(|h| h.0 <= self.clock.now_us())
-                    {
+                    let due = self
+                        .held
+                        .front()
+                        .is_some_and(|h| h.0 <= self.clock.now_us());
+                    if Instant::now() >= deadline && !due {
                         return Ok(None);
                     }
                 }

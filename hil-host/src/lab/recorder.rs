@@ -541,8 +541,8 @@ mod tests {
             output_torque_true_nm: 0.25,
             state: State::FaultReaction,
             flags: 5,
-            fault: k % 2 == 0,
-            cmd_missing: k % 3 == 0,
+            fault: k.is_multiple_of(2),
+            cmd_missing: k.is_multiple_of(3),
         }
     }
 

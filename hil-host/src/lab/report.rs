@@ -23,7 +23,8 @@ use super::recorder::{SeenFault, Tally};
 use super::summary::Summary;
 use super::supervisor::{fault_words, Event, Phase};
 
-/// How a run ended, worst first in [`Verdict::rank`].
+/// How a run ended. A report takes the worst that applies: interrupted, faulted, incomplete,
+/// degraded, ok.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
     /// Ran to the end; no fault, no bus error frame, losses under the threshold.
