@@ -1,7 +1,8 @@
 //! The HIL lab over real SocketCAN with card, plant and supervisor as **separate processes**
 //! on `vcan0` (the `hil-host card|plant|supervise` commands): a lockstep scenario runs, the
 //! supervisor is killed mid-run, and the card's watchdog must stop the joint; the plant's
-//! 1 kHz recording and candump log are then checked.
+//! 1 kHz recording and candump log are then checked, and the plant's report, which must
+//! open with the fault and exit 1.
 //!
 //! Without vcan0 (this build machine's kernel has no CAN) the test prints
 //! `SKIPPED: vcan0 not available (…)` and passes, unless `JOINTLAB_REQUIRE_VCAN=1`;
@@ -116,7 +117,18 @@ fn vcan_hil_processes_watchdog_and_recording() {
         wall.as_secs_f64(),
         String::from_utf8_lossy(&plant.stderr)
     );
-    assert!(plant.status.success(), "plant failed");
+    // The run faulted (the watchdog, as intended here): the plant's report says so first
+    // and its exit code is 1, not 0.
+    assert_eq!(plant.status.code(), Some(1), "plant exit: the run faulted");
+    let verdict = out
+        .lines()
+        .skip_while(|l| l.trim().is_empty())
+        .nth(1)
+        .unwrap_or("");
+    assert!(
+        verdict.starts_with("  FAULTED: the card latched SupervisorWatchdog"),
+        "{verdict}"
+    );
     let sup_status = sup.0.wait().expect("supervisor exit");
     assert!(sup_status.success(), "supervisor exited with {sup_status}");
 

@@ -152,17 +152,14 @@ fn print_report(r: &Report, json: bool) {
     }
 }
 
-/// The worst of several verdicts, as an error carrying its exit code.
+/// The worst of several verdicts (interrupted first), as an error carrying its exit code.
 fn verdicts(reports: &[Report]) -> Result<()> {
     let worst = reports
         .iter()
         .find(|r| r.verdict == Verdict::Interrupted)
         .or_else(|| reports.iter().find(|r| r.verdict != Verdict::Ok));
     match worst {
-        Some(r) => Err(RunFailed::check(r)
-            .err()
-            .map(anyhow::Error::new)
-            .unwrap_or_else(|| anyhow!("run failed"))),
+        Some(r) => RunFailed::check(r).map_err(Into::into),
         None => Ok(()),
     }
 }
@@ -736,10 +733,30 @@ pub fn supervise(a: SuperviseArgs) -> Result<()> {
         "supervisor done after {ticks} ticks, phase {:?}",
         sup.phase()
     );
-    if sup.events.iter().any(|e| matches!(e, Event::Fault(_))) || sup.phase() != Phase::Stopped {
-        bail!("the run ended with a fault or before its script finished");
-    }
-    Ok(())
+    let fault = sup.events.iter().find_map(|e| match e {
+        Event::Fault(w) => Some(w.clone()),
+        _ => None,
+    });
+    let refused = sup.events.iter().find_map(|e| match e {
+        Event::Refused(w) => Some(w.clone()),
+        _ => None,
+    });
+    let (verdict, headline) = if stop.load(Ordering::Relaxed) {
+        (Verdict::Interrupted, format!("stopped by Ctrl-C after {ticks} ticks"))
+    } else if let Some(w) = fault {
+        (Verdict::Faulted, format!("the card reported a fault: {w}"))
+    } else if let Some(w) = refused {
+        (Verdict::Incomplete, format!("the card refused: {w}"))
+    } else if sup.phase() != Phase::Stopped {
+        (
+            Verdict::Incomplete,
+            format!("the script ended in phase {:?}, before it finished", sup.phase()),
+        )
+    } else {
+        return Ok(());
+    };
+    println!("  {}: {headline}", verdict.word());
+    Err(RunFailed { verdict, headline }.into())
 }
 
 /// `hil-host run`.

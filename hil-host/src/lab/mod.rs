@@ -12,6 +12,10 @@
 //! [`Lab`] runs all three nodes in one thread in lockstep on the in-process bus (the
 //! zero-setup demo and the deterministic tests); [`threaded`] runs each node on its own bus
 //! handle — threads in one process or separate processes on `vcan0`/`can0`.
+//!
+//! Faults can be injected on purpose ([`inject`]); every run ends in a [`report::Report`]
+//! whose verdict (ok, degraded, faulted, incomplete, interrupted) sets the exit code, and
+//! whose figures are computed from the recording on disk ([`recorder`], [`summary`]).
 
 pub mod card_node;
 pub mod gains;

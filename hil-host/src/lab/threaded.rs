@@ -4,7 +4,12 @@
 //! Time: in lockstep the plant paces everything (sensor frame k → actuator k → integrate),
 //! the card's clock is its tick count and the supervisor counts `Sensor` frames, so the
 //! control behaviour does not depend on wall time or scheduling. In real time the plant ticks
-//! from a 1 kHz wall clock and reports late/missing actuator frames and period jitter.
+//! from a 1 kHz wall clock and measures how late each tick started ([`LateHistogram`]: p50,
+//! p99, the worst stall and when), besides the actuator frames that came late or not at all.
+//!
+//! Every loop hands an error frame to its node (the card's bus-fault handling, the
+//! supervisor's and the plant's counts, the recorder's candump log) and carries on; only a
+//! bus that fails outright ends a loop.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
