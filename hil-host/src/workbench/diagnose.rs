@@ -293,7 +293,7 @@ fn input_noise_bias(
     };
     let he = &pr.input;
     let ee: f64 = he.iter().map(|x| x * x).sum();
-    if !(ee > 0.0) {
+    if ee.is_nan() || ee <= 0.0 {
         return Vec::new();
     }
     let n = n as f64;

@@ -143,6 +143,7 @@ fn run_job(job: &Job) -> Done {
             skipped: Some(match s {
                 Skip::Diverged(why) => format!("diverged: {why}"),
                 Skip::Strength(r) => format!("strength ρ = {r:.3} far from its target"),
+                Skip::Stuck(c) => format!("stuck: the joint moved {c:.0} counts"),
             }),
         },
     }
