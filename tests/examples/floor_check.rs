@@ -19,7 +19,11 @@ fn main() {
             let wb = p.equation_floor(m.inertia.value);
             let rms = refine::score(&m, &p).rms;
             // Robust input-noise estimate: MAD of the second difference.
-            let mut d2: Vec<f64> = rec.input.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).collect();
+            let mut d2: Vec<f64> = rec
+                .input
+                .windows(3)
+                .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+                .collect();
             d2.sort_by(f64::total_cmp);
             let mad = d2[d2.len() / 2] * 1.4826 / 6f64.sqrt();
             let gain = hil_host::workbench::diff::noise_gain(tr.cutoff, 1.0 / rec.dt);

@@ -10,12 +10,28 @@ fn main() {
     let t = hidden::generate(truth.as_ref(), seed, &fam, rho, Logging::Zoh).unwrap();
     let r = &t.est;
     let rms = |x: &[f64]| (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
-    let nq: Vec<f64> = r.position.iter().zip(&r.position_true).map(|(a, b)| a - b).collect();
-    println!("cutoff {} dt {} J {} J2 {} spring {:?}", t.cutoff, r.dt, r.inertia, r.inertia_load, r.spring);
-    println!("input noise rms {:.3e}, encoder error rms {:.3e}", rms(&r.input_noise), rms(&nq));
+    let nq: Vec<f64> = r
+        .position
+        .iter()
+        .zip(&r.position_true)
+        .map(|(a, b)| a - b)
+        .collect();
+    println!(
+        "cutoff {} dt {} J {} J2 {} spring {:?}",
+        t.cutoff, r.dt, r.inertia, r.inertia_load, r.spring
+    );
+    println!(
+        "input noise rms {:.3e}, encoder error rms {:.3e}",
+        rms(&r.input_noise),
+        rms(&nq)
+    );
     let mut z = r.clone();
     z.position = z.position_true.clone();
-    println!("floor {:.3e}; input part {:.3e}", referee::floor(r, t.cutoff), referee::floor(&z, t.cutoff));
+    println!(
+        "floor {:.3e}; input part {:.3e}",
+        referee::floor(r, t.cutoff),
+        referee::floor(&z, t.cutoff)
+    );
     let mut q = r.clone();
     q.input_noise = vec![0.0; q.input_noise.len()];
     println!("encoder part {:.3e}", referee::floor(&q, t.cutoff));

@@ -184,7 +184,15 @@ fn scan(
 ) -> Option<Scan> {
     let t = p.trajectory();
     let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW {
-        search(kind, &t, x0, g0i, e, p.input_probe.as_deref(), p.input_noise_var)?
+        search(
+            kind,
+            &t,
+            x0,
+            g0i,
+            e,
+            p.input_probe.as_deref(),
+            p.input_noise_var,
+        )?
     } else {
         search_windowed(kind, p, &t, x0, g0i, e)?
     };
@@ -736,6 +744,23 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         c.rank = i + 1;
     }
 
+    // A residual within [`AT_ENCODER_FLOOR`] of the encoder's noise through the inertia —
+    // which no effect can explain, and which is estimated reliably (the position's fourth
+    // difference; the input's own floor reads high on a dithered command) — has nothing left
+    // to explain: what a candidate fits there is that noise's structure.
+    let quiet = baseline.rms <= AT_ENCODER_FLOOR * baseline.encoder_noise_rms;
+    if quiet {
+        for c in cands.iter_mut().filter(|c| c.significant) {
+            c.significant = false;
+            notes.push(format!(
+                "{}: significant, but the residual is within {:.0} % of the encoder's noise \
+                 floor alone (RMS {:.2}× it): nothing is left to explain",
+                c.effect,
+                100.0 * (AT_ENCODER_FLOOR - 1.0),
+                baseline.rms / baseline.encoder_noise_rms
+            ));
+        }
+    }
     let winner = cands.iter().find(|c| c.significant).cloned();
     let verdict = match winner {
         None => Verdict {
@@ -839,6 +864,10 @@ fn intersample_note(model: &Model, p: &Prepared, opts: &Options, rss: f64) -> Op
         )
     })
 }
+
+/// RMS of a residual, in units of the encoder's share of its noise floor, up to which no
+/// verdict is given (see `diagnose`).
+pub const AT_ENCODER_FLOOR: f64 = 1.1;
 
 /// RMS of a residual, in units of its noise floor, up to which it counts as "at the floor":
 /// for `encoder_limited`, and for `fit`'s hint to look for another effect.

@@ -472,10 +472,15 @@ fn drive(jt: &Joint, seed: u64, which: Which, kind: Excitation, rows: usize) -> 
 /// The compliance family's linear spring referred to the motor (stiffness, damping), or none
 /// (a rigid transmission, or backlash's contact spring, which acts only in contact).
 fn motor_side_spring(jt: &Joint, effects: &[(Family, f64)]) -> Option<(f64, f64)> {
-    if effects.iter().any(|(f, a)| *f == Family::Backlash && *a > 0.0) {
+    if effects
+        .iter()
+        .any(|(f, a)| *f == Family::Backlash && *a > 0.0)
+    {
         return None;
     }
-    let (_, a) = effects.iter().find(|(f, a)| *f == Family::Compliance && *a > 0.0)?;
+    let (_, a) = effects
+        .iter()
+        .find(|(f, a)| *f == Family::Compliance && *a > 0.0)?;
     let hz = (60.0 / a.sqrt()).clamp(6.0, 5000.0);
     let jr = jt.i1 * jt.j2 / (jt.i1 + jt.j2);
     let w = TAU * hz;
@@ -879,6 +884,7 @@ impl Truth for LabTruth {
             inertia_load: jt.j2,
             spring: motor_side_spring(&jt, effects),
             load_position_true: log.load_position_true,
+            gear_ratio: jt.n,
         })
     }
 

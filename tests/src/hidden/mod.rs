@@ -209,7 +209,9 @@ pub fn generate_in(
         let (lo, hi) = r
             .position_true
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
         let counts = (hi - lo) / count;
         if counts.is_nan() || counts < MIN_TRAVEL_COUNTS {
             return Err(Skip::Stuck(counts));
@@ -251,6 +253,7 @@ pub fn recording(rec: &TruthRecord, logging: Logging, load: bool, label: &str) -
         Logging::Mid => Intersample::Mid,
     };
     let mut columns = Columns::new("torque_Nm", "q_rad").with_intersample(intersample);
+    columns.gear_ratio = rec.gear_ratio;
     if load {
         columns.load_output = Some("load_rad".into());
     }
@@ -389,7 +392,8 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     if families == [Family::Backlash] && out.top.as_deref() == Some("compliance") {
         let mut m = model.clone();
         let run = refine::auto(&mut m, &pe, None, &opts, 3).map_err(|e| format!("--auto: {e}"))?;
-        let added: Vec<Option<String>> = run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
+        let added: Vec<Option<String>> =
+            run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
         out.backlash_after_compliance = Some(
             added.first() == Some(&Some("compliance".into()))
                 && added.get(1) == Some(&Some("backlash".into())),

@@ -186,6 +186,9 @@ pub struct TruthRecord {
     pub spring: Option<(f64, f64)>,
     /// True load position at the logged instants, referred to the motor (as `load_position`).
     pub load_position_true: Vec<f64>,
+    /// The joint's gear ratio (motor turns per output turn; 1 for a direct drive): what a user
+    /// tells the workbench (`--gear-ratio`) so that gravity acts on the output angle.
+    pub gear_ratio: f64,
 }
 
 /// A truth: deterministic in (seed, effects, conditions, which).

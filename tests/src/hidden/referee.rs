@@ -239,6 +239,7 @@ mod tests {
             inertia_load: 0.0,
             spring: None,
             load_position_true: Vec::new(),
+            gear_ratio: 1.0,
         };
         let fl = floor(&rec, 40.0);
         let band = (2.0 * 40.0 * dt).sqrt() * rms(&noise);

@@ -409,6 +409,7 @@ impl Truth for Rk4 {
             // The dead zone's spring acts only in contact: not a linear transmission.
             spring: (p.backlash == 0.0).then_some((p.k, p.c)),
             load_position_true,
+            gear_ratio: 1.0,
         })
     }
 

@@ -80,6 +80,8 @@ pub struct Prepared {
     /// is the input mapped to the position's sample instants by it, and input-built columns
     /// are mapped the same way (`Trajectory::input_lowpass`).
     pub intersample: Intersample,
+    /// Turns of the position per turn of the joint's output (`Columns::gear_ratio`).
+    pub gear_ratio: f64,
     /// The same preparation applied to a unit impulse of the raw *input* (zero position), on
     /// a record of the same length and window: its `input` is the residual's response to one
     /// sample of input noise, and a column built from the recorded input (compliance's
@@ -183,14 +185,15 @@ impl Prepared {
             load_position,
             load_acceleration_noise_var,
             intersample,
+            gear_ratio: rec.columns.gear_ratio,
             input_probe: None,
             input_noise_var: input_sigma * input_sigma,
             noise_probe: None,
         };
         p.input_instrument = instrument(&p);
         p.noise_probe = noise_probe(rec.len(), e, rec.dt, fc, Impulse::Position).map(Box::new);
-        p.input_probe = noise_probe(rec.len(), e, rec.dt, fc, Impulse::Input(intersample))
-            .map(Box::new);
+        p.input_probe =
+            noise_probe(rec.len(), e, rec.dt, fc, Impulse::Input(intersample)).map(Box::new);
         p
     }
 
@@ -206,8 +209,14 @@ impl Prepared {
         };
         p.input_instrument = instrument(&p);
         let edge = self.raw_offset;
-        p.input_probe = noise_probe(self.raw_input.len(), edge, self.dt, self.cutoff_hz, Impulse::Input(intersample))
-            .map(Box::new);
+        p.input_probe = noise_probe(
+            self.raw_input.len(),
+            edge,
+            self.dt,
+            self.cutoff_hz,
+            Impulse::Input(intersample),
+        )
+        .map(Box::new);
         p
     }
 
@@ -232,6 +241,7 @@ impl Prepared {
             lowpass_hz: self.cutoff_hz,
             load_position: &self.load_position,
             intersample: self.intersample,
+            gear_ratio: self.gear_ratio,
         }
     }
 
@@ -309,6 +319,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         load_position: Vec::new(),
         load_acceleration_noise_var: 0.0,
         intersample,
+        gear_ratio: 1.0,
         input_probe: None,
         input_noise_var: 0.0,
         noise_probe: None,
