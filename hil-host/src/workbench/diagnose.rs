@@ -748,7 +748,10 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     // which no effect can explain, and which is estimated reliably (the position's fourth
     // difference; the input's own floor reads high on a dithered command) — has nothing left
     // to explain: what a candidate fits there is that noise's structure.
-    let quiet = baseline.rms <= AT_ENCODER_FLOOR * baseline.encoder_noise_rms;
+    // (A model with a transmission mode passes the encoder's noise through J1 + J2·G(s), not
+    // J·s²: its floor is not the rigid one, and the rule does not apply.)
+    let quiet = !model.has(EffectKind::Compliance)
+        && baseline.rms <= AT_ENCODER_FLOOR * baseline.encoder_noise_rms;
     if quiet {
         for c in cands.iter_mut().filter(|c| c.significant) {
             c.significant = false;
