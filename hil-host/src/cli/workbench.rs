@@ -695,7 +695,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
              operator); a light motor that chatters against the load within one encoder count \
              leaves that above the floor whatever the fit. A load-side encoder \
              (`--load-output COL`) measures the deflection instead (docs/workbench.md, \
-             *With a load-side encoder*).",
+             *Record*).",
         );
     }
     s.push('\n');

@@ -905,7 +905,7 @@ pub const UNEXPLAINED: f64 = 1.5;
 /// the verdict then means "nothing in the library", not "nothing left". On the XL330 servo
 /// logs in ../shared/data/real, after gravity and Coulomb, no candidate is significant while
 /// the residual is 3.2× its floor and not white: what is left has no fingerprint in the
-/// library (docs/workbench.md, *On a second real machine*).
+/// library (docs/design/workbench-notebook.md, *On a second real machine*).
 fn unexplained(b: &Baseline, verdict: Option<&str>) -> Option<String> {
     let left = b.rms / b.noise_floor_rms;
     (verdict.is_none() && left > UNEXPLAINED).then(|| {

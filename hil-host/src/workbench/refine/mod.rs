@@ -156,7 +156,7 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
 /// alternative; holding δ lets the window and vs settle under each curve shape instead of
 /// the one the diagnosis's grid happened to prefer. On the 119 hidden-Stribeck trials at
 /// ρ ≥ 1 of the 200-per-family bench, validation within 1.1× the floor: one start 93, the
-/// first two 97, all four 103 (`stribeck_probe` with `WB_ONLY=1`; docs/workbench.md).
+/// first two 97, all four 103 (docs/design/workbench-notebook.md).
 pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
     refit_searching(model, p, Only::All)
 }
