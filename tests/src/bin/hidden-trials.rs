@@ -58,7 +58,7 @@ struct Bench {
     #[arg(long)]
     nulls_only: bool,
     /// State file (JSON lines) that makes the run resumable (default
-    /// target/hidden-trials-seed<S>.jsonl).
+    /// `target/hidden-trials-seed<S>.jsonl`).
     #[arg(long)]
     state: Option<PathBuf>,
     /// List the failed trials (on stderr) with their conditions.
