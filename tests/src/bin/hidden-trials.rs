@@ -261,7 +261,7 @@ fn main() {
     eprintln!(
         "{} trials, {} already in {} — running {}",
         jobs.len(),
-        jobs.len() - todo.len(),
+        jobs.iter().filter(|j| done.contains_key(j)).count(),
         state.display(),
         todo.len()
     );
