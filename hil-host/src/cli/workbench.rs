@@ -96,6 +96,10 @@ pub struct DataArgs {
     /// a --validate file.
     #[arg(long, default_value = "zoh", value_parser = intersample)]
     pub intersample: Intersample,
+    /// The output column is the motor shaft of an N:1 gear: gravity acts on the joint's output
+    /// angle, position/N (default 1: the column is the output's angle).
+    #[arg(long, default_value_t = 1.0, value_parser = positive)]
+    pub gear_ratio: f64,
 }
 
 impl DataArgs {
@@ -118,6 +122,7 @@ impl DataArgs {
             input_times: self.input_times.clone(),
             load_gain: self.load_gain,
             intersample: self.intersample,
+            gear_ratio: self.gear_ratio,
         }
     }
     /// A --validate recording: the whole file, no window. The recording itself, unwindowed,
@@ -690,7 +695,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
              operator); a light motor that chatters against the load within one encoder count \
              leaves that above the floor whatever the fit. A load-side encoder \
              (`--load-output COL`) measures the deflection instead (docs/workbench.md, \
-             *With a load-side encoder*).",
+             *Record*).",
         );
     }
     s.push('\n');

@@ -203,6 +203,9 @@ pub struct Columns {
     /// What the input did between its samples relative to when the position was sampled
     /// (default: zero-order hold, how a drive logs; see `sim_plant::effects::Intersample`).
     pub intersample: Intersample,
+    /// Turns of the output (position) column per turn of the joint's output: a gear's ratio N
+    /// when the column is the motor shaft (gravity then acts on position/N); 1 by default.
+    pub gear_ratio: f64,
 }
 
 impl Columns {
@@ -218,6 +221,7 @@ impl Columns {
             window: None,
             load_gain: 1.0,
             intersample: Intersample::default(),
+            gear_ratio: 1.0,
         }
     }
 

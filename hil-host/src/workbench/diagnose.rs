@@ -301,7 +301,7 @@ fn input_noise_bias(
     };
     let he = &pr.input;
     let ee: f64 = he.iter().map(|x| x * x).sum();
-    if !(ee > 0.0) {
+    if ee.is_nan() || ee <= 0.0 {
         return Vec::new();
     }
     let n = n as f64;
@@ -744,6 +744,26 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         c.rank = i + 1;
     }
 
+    // A residual within [`AT_ENCODER_FLOOR`] of the encoder's noise through the inertia —
+    // which no effect can explain, and which is estimated reliably (the position's fourth
+    // difference; the input's own floor reads high on a dithered command) — has nothing left
+    // to explain: what a candidate fits there is that noise's structure.
+    // (A model with a transmission mode passes the encoder's noise through J1 + J2·G(s), not
+    // J·s²: its floor is not the rigid one, and the rule does not apply.)
+    let quiet = !model.has(EffectKind::Compliance)
+        && baseline.rms <= AT_ENCODER_FLOOR * baseline.encoder_noise_rms;
+    if quiet {
+        for c in cands.iter_mut().filter(|c| c.significant) {
+            c.significant = false;
+            notes.push(format!(
+                "{}: significant, but the residual is within {:.0} % of the encoder's noise \
+                 floor alone (RMS {:.2}× it): nothing is left to explain",
+                c.effect,
+                100.0 * (AT_ENCODER_FLOOR - 1.0),
+                baseline.rms / baseline.encoder_noise_rms
+            ));
+        }
+    }
     let winner = cands.iter().find(|c| c.significant).cloned();
     let verdict = match winner {
         None => Verdict {
@@ -826,27 +846,42 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
 /// a wrong convention leaves in the residual as a delay of either sign.
 fn intersample_note(model: &Model, p: &Prepared, opts: &Options, rss: f64) -> Option<String> {
     use sim_plant::effects::Intersample;
-    let (best, best_rss) = [Intersample::Zoh, Intersample::Foh, Intersample::Mid]
-        .into_iter()
-        .filter(|&i| i != p.intersample)
-        .filter_map(|is| {
-            let q = p.with_intersample(is);
-            let d = residual::design(model, &q);
-            fit::least_squares(&d.cols, &d.y).ok().map(|f| (is, f.rss))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let mut others: Vec<(Intersample, f64)> =
+        [Intersample::Zoh, Intersample::Foh, Intersample::Mid]
+            .into_iter()
+            .filter(|&i| i != p.intersample)
+            .filter_map(|is| {
+                let q = p.with_intersample(is);
+                let d = residual::design(model, &q);
+                fit::least_squares(&d.cols, &d.y).ok().map(|f| (is, f.rss))
+            })
+            .collect();
+    others.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let &(best, best_rss) = others.first()?;
     let gain = 1.0 - best_rss / rss;
     let explained_rms = ((rss - best_rss).max(0.0) / p.len() as f64).sqrt();
+    // Another that fits as well, to within the practical threshold, is named too: `mid` and
+    // `foh` differ by a sinc in the band, far less than the half sample either is from `zoh`.
+    let also: Vec<String> = others[1..]
+        .iter()
+        .filter(|(_, r)| (r - best_rss) < opts.min_err * rss)
+        .map(|(i, _)| format!(" (or `{i}`, nearly as well)"))
+        .collect();
     (gain >= opts.min_err && explained_rms >= opts.min_rho * p.practical_floor(rss)).then(|| {
         format!(
-            "the input fits {:.1} % better read as `{best}` ({}) than as `{}`: if that is how \
+            "the input fits {:.1} % better read as `{best}`{} ({}) than as `{}`: if that is how \
              the record was logged, pass --intersample {best}",
             100.0 * gain,
+            also.concat(),
             best.describe(),
             p.intersample
         )
     })
 }
+
+/// RMS of a residual, in units of the encoder's share of its noise floor, up to which no
+/// verdict is given (see `diagnose`).
+pub const AT_ENCODER_FLOOR: f64 = 1.1;
 
 /// RMS of a residual, in units of its noise floor, up to which it counts as "at the floor":
 /// for `encoder_limited`, and for `fit`'s hint to look for another effect.
@@ -881,7 +916,7 @@ pub const UNEXPLAINED: f64 = 1.5;
 /// the verdict then means "nothing in the library", not "nothing left". On the XL330 servo
 /// logs in ../shared/data/real, after gravity and Coulomb, no candidate is significant while
 /// the residual is 3.2× its floor and not white: what is left has no fingerprint in the
-/// library (docs/workbench.md, *On a second real machine*).
+/// library (docs/design/workbench-notebook.md, *On a second real machine*).
 fn unexplained(b: &Baseline, verdict: Option<&str>) -> Option<String> {
     let left = b.rms / b.noise_floor_rms;
     (verdict.is_none() && left > UNEXPLAINED).then(|| {

@@ -34,9 +34,10 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
     };
 }
 
-/// `[sin q, cos q]`.
+/// `[sin q, cos q]` of the output angle q (the position over the trajectory's gear ratio).
 pub fn fingerprint(traj: &Trajectory, _shape: &Shape) -> Vec<Vec<f64>> {
-    super::ripple::periodic_columns(traj, std::f64::consts::TAU)
+    let n = super::signal::positive_or(traj.gear_ratio, 1.0);
+    super::ripple::periodic_columns(traj, std::f64::consts::TAU * n)
 }
 
 /// No shape parameters.

@@ -78,6 +78,9 @@ pub struct Trajectory<'a> {
     /// How `raw_input` behaved between its samples: columns built from it are mapped onto the
     /// position's sample instants ([`Trajectory::input_lowpass`]) as the residual's input was.
     pub intersample: Intersample,
+    /// Turns of `position` per turn of the joint's output: a gear's ratio N when the position
+    /// is the motor shaft's, 1 when it is the output's. Gravity acts on the output angle.
+    pub gear_ratio: f64,
 }
 
 impl<'a> Trajectory<'a> {
@@ -103,6 +106,7 @@ impl<'a> Trajectory<'a> {
             lowpass_hz: 0.0,
             load_position: &[],
             intersample: Intersample::Bl,
+            gear_ratio: 1.0,
         }
     }
 

@@ -102,7 +102,14 @@ pub enum Skip {
     Diverged(String),
     /// The strength could not be brought near its target (ρ not finite, or over 20× it).
     Strength(f64),
+    /// The joint hardly moved (its true position spans fewer than [`MIN_TRAVEL_COUNTS`]
+    /// encoder counts on a record): stuck in its friction, nothing to identify.
+    Stuck(f64),
 }
+
+/// Fewest encoder counts the true motor position must span on each record for a trial to
+/// count.
+pub const MIN_TRAVEL_COUNTS: f64 = 100.0;
 
 /// A generated trial: both records and the referee's numbers.
 #[derive(Debug, Clone)]
@@ -125,10 +132,12 @@ pub struct Trial {
     pub rho: f64,
     /// Noise floor of the estimation record.
     pub floor_est: f64,
-    /// Noise floor of the validation record.
+    /// Noise floor of the validation record for a rigid model.
     pub floor_val: f64,
-    /// Noise floor of the validation record for a model that reads the load encoder too.
-    pub floor_val_load: f64,
+    /// Noise floor of the validation record for the model a refit of the single hidden
+    /// family is judged as: with the transmission's spring for compliance, on both encoders
+    /// for backlash (fitted on the measured deflection), rigid otherwise.
+    pub floor_val_refit: f64,
 }
 
 impl Trial {
@@ -195,9 +204,27 @@ pub fn generate_in(
     }
     let est = rec(&effects, Which::Estimation)?;
     let val = rec(&effects, Which::Validation)?;
+    let count = std::f64::consts::TAU / cond.counts_per_rev;
+    for r in [&est, &val] {
+        let (lo, hi) = r
+            .position_true
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let counts = (hi - lo) / count;
+        if counts.is_nan() || counts < MIN_TRAVEL_COUNTS {
+            return Err(Skip::Stuck(counts));
+        }
+    }
     let floor_est = referee::floor(&est, fc);
     let floor_val = referee::floor(&val, fc);
-    let floor_val_load = referee::floor_with_load(&val, fc);
+    let path = match families {
+        [Family::Compliance] => referee::NoisePath::Spring,
+        [Family::Backlash] => referee::NoisePath::TwoEncoders,
+        _ => referee::NoisePath::Rigid,
+    };
+    let floor_val_refit = referee::floor_on(&val, fc, path);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
     let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
     if !families.is_empty() && !in_reach {
@@ -214,7 +241,7 @@ pub fn generate_in(
         rho,
         floor_est,
         floor_val,
-        floor_val_load,
+        floor_val_refit,
     })
 }
 
@@ -226,6 +253,7 @@ pub fn recording(rec: &TruthRecord, logging: Logging, load: bool, label: &str) -
         Logging::Mid => Intersample::Mid,
     };
     let mut columns = Columns::new("torque_Nm", "q_rad").with_intersample(intersample);
+    columns.gear_ratio = rec.gear_ratio;
     if load {
         columns.load_output = Some("load_rad".into());
     }
@@ -384,7 +412,7 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
             let r = refine::fit_add(&mut m, &pe, Some(kind), Some(&pv))
                 .map_err(|e| format!("fit --add {}: {e}", f.name()))?;
             let v = r.after_validation.ok_or("fit gave no validation score")?;
-            let floor = if load { t.floor_val_load } else { t.floor_val };
+            let floor = t.floor_val_refit;
             out.val_ratio = Some(v.rms / floor);
             if debug {
                 eprintln!(

@@ -1,5 +1,5 @@
 //! What a truth is asked to simulate and what it hands back: the one interface between the
-//! independently written truths ([`super::truth`], [`super::physicist`], [`super::lab`]) and
+//! independently written truths ([`mod@super::truth`], [`super::physicist`], [`super::lab`]) and
 //! the harness. The workbench sees only `time`, `input`, `position` (and `load_position`); the
 //! referee ([`super::referee`]) sees the rest.
 
@@ -186,6 +186,9 @@ pub struct TruthRecord {
     pub spring: Option<(f64, f64)>,
     /// True load position at the logged instants, referred to the motor (as `load_position`).
     pub load_position_true: Vec<f64>,
+    /// The joint's gear ratio (motor turns per output turn; 1 for a direct drive): what a user
+    /// tells the workbench (`--gear-ratio`) so that gravity acts on the output angle.
+    pub gear_ratio: f64,
 }
 
 /// A truth: deterministic in (seed, effects, conditions, which).

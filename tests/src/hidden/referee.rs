@@ -75,21 +75,32 @@ fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
-/// The noise floor of `rec`'s equation error at the cut-off `cutoff_hz`, for a correct model
-/// of the joint seen through its motor encoder: the input's noise plus the encoder's error
-/// through the joint's inverse dynamics, J1·s² + J2·s²·G(s) with G the load's response to
-/// the motor across a linear transmission spring (1 for a rigid one: J·s²).
+/// How the encoders' error reaches the residual of the model a refit is judged as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoisePath {
+    /// A rigid joint's model: J·s² on the motor encoder's error.
+    Rigid,
+    /// A model with the joint's transmission spring: J1·s² + J2·s²·G(s), G the load's
+    /// response to the motor (rigid when the record has no linear spring).
+    Spring,
+    /// A model that reads the load encoder too (a backlash on the measured deflection):
+    /// J1·s² on the motor encoder's error and J2·s² on the load encoder's.
+    TwoEncoders,
+}
+
+/// The noise floor of `rec`'s equation error at the cut-off `cutoff_hz` for a rigid model:
+/// the input's noise plus the motor encoder's error through J·s².
 pub fn floor(rec: &TruthRecord, cutoff_hz: f64) -> f64 {
-    floor_with(rec, cutoff_hz, false)
+    floor_with(rec, cutoff_hz, NoisePath::Rigid)
 }
 
-/// [`floor`] for a model that also reads the load encoder (a backlash fitted on the measured
-/// deflection): J1·s² on the motor encoder's error and J2·s² on the load encoder's.
-pub fn floor_with_load(rec: &TruthRecord, cutoff_hz: f64) -> f64 {
-    floor_with(rec, cutoff_hz, true)
+/// The noise floor for a model whose encoder noise takes `path`.
+pub fn floor_on(rec: &TruthRecord, cutoff_hz: f64, path: NoisePath) -> f64 {
+    floor_with(rec, cutoff_hz, path)
 }
 
-fn floor_with(rec: &TruthRecord, cutoff_hz: f64, load: bool) -> f64 {
+fn floor_with(rec: &TruthRecord, cutoff_hz: f64, path: NoisePath) -> f64 {
+    let load = path == NoisePath::TwoEncoders;
     let fc = cutoff_hz * rec.dt;
     let dt = rec.dt;
     let error = |logged: &[f64], truth: &[f64]| -> Vec<f64> {
@@ -107,7 +118,7 @@ fn floor_with(rec: &TruthRecord, cutoff_hz: f64, load: bool) -> f64 {
     let motor_path = |f: f64| -> Complex64 {
         let jd = if load {
             Complex64::new(j1, 0.0)
-        } else if let Some((k, c)) = rec.spring {
+        } else if let Some((k, c)) = rec.spring.filter(|_| path == NoisePath::Spring) {
             let s = Complex64::new(0.0, std::f64::consts::TAU * f / dt);
             let g = (s * c + k) / (s * s * j2 + s * c + k);
             j1 + g * j2
@@ -228,6 +239,7 @@ mod tests {
             inertia_load: 0.0,
             spring: None,
             load_position_true: Vec::new(),
+            gear_ratio: 1.0,
         };
         let fl = floor(&rec, 40.0);
         let band = (2.0 * 40.0 * dt).sqrt() * rms(&noise);

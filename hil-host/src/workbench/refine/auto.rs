@@ -10,7 +10,7 @@ use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
 use super::super::model::Model;
 use super::super::residual::{self, Prepared};
-use super::{each_on_a_thread, refit_all, score, Score};
+use super::{each_on_a_thread, refit_added, refit_all, score, Score};
 
 /// One step of `diagnose --auto`.
 #[derive(Debug, Clone, Serialize)]
@@ -176,6 +176,21 @@ pub fn auto_observed(
                 ),
             });
         };
+        // The step taken is refitted in full, from the candidate's grid shape: the
+        // candidates were weighed with the model's other shapes as they were.
+        let fitted = match c.kind {
+            Some(k) => {
+                let mut m = model.clone();
+                m.add(k, c.shape.clone());
+                refit_all(&mut m, p)?;
+                if m.physical().is_ok() {
+                    m
+                } else {
+                    fitted
+                }
+            }
+            None => fitted,
+        };
         // With a validation record, a step must earn its place there too.
         let val = validation.map(|v| score(&fitted, v));
         if let (Some(before), Some(after)) = (steps.list.last().and_then(|s| s.validation), val) {
@@ -309,13 +324,14 @@ pub(super) fn choose(
     // Each candidate's full refit is independent of the others' (and deterministic), so they
     // run on their own threads; the results are then taken in pool order, exactly as one
     // after the other.
+    let first_new = model.effects.len();
     let refits = each_on_a_thread(&pool, |c| {
         let mut m = model.clone();
         m.add(c.kind?, c.shape.clone());
         if !coherent(&m) {
             return None;
         }
-        Some(refit_all(&mut m, p).map(|()| m))
+        Some(refit_added(&mut m, p, first_new).map(|()| m))
     });
     // The candidate that buys the most BIC per parameter it spends: greedy selection under
     // a parameter budget. A one-parameter offset that explains nearly what a two-parameter
@@ -415,6 +431,8 @@ fn swap_pass(
         };
         // The moves to try, in order: each added effect removed, or replaced by one or two
         // fresh candidates that spend no more parameters.
+        // (Each trial searches only the shapes of what it adds, after the model's others.)
+        let first_new = model.effects.len() - 1;
         let mut trials: Vec<(Model, Option<String>, String)> = Vec::new();
         for i in start_len..model.effects.len() {
             let old = &model.effects[i];
@@ -454,7 +472,7 @@ fn swap_pass(
         // results considered in the order above (the same choice as one after the other).
         let refits = each_on_a_thread(&trials, |(m, _, _)| {
             let mut m = m.clone();
-            refit_all(&mut m, p).map(|()| m)
+            refit_added(&mut m, p, first_new).map(|()| m)
         });
         for (refit, (_, added, replaced)) in refits.into_iter().zip(trials) {
             consider(refit?, added, replaced);

@@ -35,6 +35,7 @@ use super::fit;
 use super::metrics;
 use super::model::Model;
 use super::residual::{self, Prepared};
+pub use search::Only;
 use search::{search_shapes, StickStart};
 
 /// Fit % and RMS of a model on one record.
@@ -155,16 +156,28 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
 /// alternative; holding δ lets the window and vs settle under each curve shape instead of
 /// the one the diagnosis's grid happened to prefer. On the 119 hidden-Stribeck trials at
 /// ρ ≥ 1 of the 200-per-family bench, validation within 1.1× the floor: one start 93, the
-/// first two 97, all four 103 (`stribeck_probe` with `WB_ONLY=1`; docs/workbench.md).
+/// first two 97, all four 103 (docs/design/workbench-notebook.md).
 pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
+    refit_searching(model, p, Only::All)
+}
+
+/// [`refit_all`], searching only the shapes of the effects from index `first` on (those just
+/// added to a fitted model); the others keep theirs. `--auto` weighs its candidates so —
+/// re-searching a transmission mode already in the model for every candidate was most of its
+/// time — and refits the one it takes in full.
+pub fn refit_added(model: &mut Model, p: &Prepared, first: usize) -> Result<(), fit::FitError> {
+    refit_searching(model, p, Only::From(first))
+}
+
+fn refit_searching(model: &mut Model, p: &Prepared, only: Only) -> Result<(), fit::FitError> {
     let stribeck = model
         .effects
         .iter()
         .any(|e| e.kind == EffectKind::Stribeck && e.params.iter().any(|q| q.free));
     if !stribeck {
-        return refit_from(model, p, StickStart::SEARCHED);
+        return refit_from(model, p, StickStart::SEARCHED, only);
     }
-    let fits = refit_each_start(model, p);
+    let fits = refit_each_start(model, p, only);
     let mut best: Option<(f64, Model)> = None;
     let mut first_err = None;
     for (m, r) in fits {
@@ -194,10 +207,14 @@ pub fn refit_all(model: &mut Model, p: &Prepared) -> Result<(), fit::FitError> {
 /// The Stribeck refit from each of [`StickStart::all`], in start order (one thread each: the
 /// order, not which finishes first, decides ties in [`refit_all`]).
 #[doc(hidden)]
-pub fn refit_each_start(model: &Model, p: &Prepared) -> Vec<(Model, Result<(), fit::FitError>)> {
+pub fn refit_each_start(
+    model: &Model,
+    p: &Prepared,
+    only: Only,
+) -> Vec<(Model, Result<(), fit::FitError>)> {
     each_on_a_thread(&StickStart::all(p), |&start| {
         let mut m = model.clone();
-        let r = refit_from(&mut m, p, start);
+        let r = refit_from(&mut m, p, start, only);
         (m, r)
     })
 }
@@ -211,9 +228,14 @@ fn each_on_a_thread<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync + 
 }
 
 /// [`refit_all`] from one start of the Stribeck searches.
-fn refit_from(model: &mut Model, p: &Prepared, start: StickStart) -> Result<(), fit::FitError> {
+fn refit_from(
+    model: &mut Model,
+    p: &Prepared,
+    start: StickStart,
+    only: Only,
+) -> Result<(), fit::FitError> {
     residual::refit(model, p)?;
-    search_shapes(model, p, start);
+    search_shapes(model, p, start, only);
     let before = residual::refit(model, p)?.rss;
     let lm_idx: Vec<usize> = model
         .effects

@@ -51,26 +51,35 @@ fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
 }
 
 /// Try each shape `set(shape, x)` for `x` in `xs` on effect `e`, keep the best by LS RSS.
-/// Returns the best x and its RSS.
+/// Returns the best x and its RSS. The fits are independent: they run on the worker pool, and
+/// the first best in `xs`'s order wins, as one after the other.
 fn line_search(
     model: &mut Model,
     p: &Prepared,
     e: usize,
     xs: &[f64],
-    set: &dyn Fn(&mut Model, usize, f64),
+    set: &(dyn Fn(&mut Model, usize, f64) + Sync),
 ) -> (f64, f64) {
+    use rayon::prelude::*;
+    let fits: Vec<(f64, Model)> = xs
+        .par_iter()
+        .map(|&x| {
+            let mut m = model.clone();
+            set(&mut m, e, x);
+            (ls_rss(&mut m, p), m)
+        })
+        .collect();
     let mut best = (f64::NAN, f64::INFINITY);
-    let mut best_model = model.clone();
-    for &x in xs {
-        let mut m = model.clone();
-        set(&mut m, e, x);
-        let r = ls_rss(&mut m, p);
+    let mut best_model = None;
+    for (&x, (r, m)) in xs.iter().zip(fits) {
         if r < best.1 {
             best = (x, r);
-            best_model = m;
+            best_model = Some(m);
         }
     }
-    *model = best_model;
+    if let Some(m) = best_model {
+        *model = m;
+    }
     best
 }
 
@@ -83,9 +92,9 @@ fn grid_search(
     p: &Prepared,
     e: usize,
     outer: &[f64],
-    set_outer: &dyn Fn(&mut Model, usize, f64),
+    set_outer: &(dyn Fn(&mut Model, usize, f64) + Sync),
     inner: &[f64],
-    set_inner: &dyn Fn(&mut Model, usize, f64),
+    set_inner: &(dyn Fn(&mut Model, usize, f64) + Sync),
 ) -> f64 {
     let mut best: Option<(f64, Model)> = None;
     for &x in outer {
@@ -114,7 +123,7 @@ fn golden(
     (mut lo, mut hi): (f64, f64),
     keep: f64,
     iters: usize,
-    set: &dyn Fn(&mut Model, usize, f64),
+    set: &(dyn Fn(&mut Model, usize, f64) + Sync),
 ) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let eval = |x: f64| {
@@ -216,8 +225,8 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   `search_stick`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
-pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart) {
-    search_each(model, p, start);
+pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
+    search_each(model, p, start, only);
     // Direction-dependent friction switches with the Coulomb friction: an asymmetry next to a
     // Coulomb term takes its sign shape (an independent one would buy reversal-shape freedom
     // with the second sign column and stand in for an offset).
@@ -238,9 +247,23 @@ pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart) 
     }
 }
 
-fn search_each(model: &mut Model, p: &Prepared, start: StickStart) {
+/// Which effects' shapes a refit searches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Only {
+    /// Every effect's.
+    All,
+    /// The effects from this index on (those just added): the others keep the shapes an
+    /// earlier refit searched.
+    From(usize),
+}
+
+fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
     let dt = p.dt;
-    for e in 0..model.effects.len() {
+    let first = match only {
+        Only::All => 0,
+        Only::From(i) => i,
+    };
+    for e in first..model.effects.len() {
         let entry = &model.effects[e];
         if !entry.params.iter().any(|q| q.free) {
             continue;
@@ -613,8 +636,8 @@ fn search_sign(
     model: &mut Model,
     p: &Prepared,
     e: usize,
-    set_eps: &dyn Fn(&mut Model, usize, f64),
-    set_lead: &dyn Fn(&mut Model, usize, f64),
+    set_eps: &(dyn Fn(&mut Model, usize, f64) + Sync),
+    set_lead: &(dyn Fn(&mut Model, usize, f64) + Sync),
     search_lead: bool,
 ) {
     let dt = p.dt;

@@ -80,6 +80,8 @@ pub struct Prepared {
     /// is the input mapped to the position's sample instants by it, and input-built columns
     /// are mapped the same way (`Trajectory::input_lowpass`).
     pub intersample: Intersample,
+    /// Turns of the position per turn of the joint's output (`Columns::gear_ratio`).
+    pub gear_ratio: f64,
     /// The same preparation applied to a unit impulse of the raw *input* (zero position), on
     /// a record of the same length and window: its `input` is the residual's response to one
     /// sample of input noise, and a column built from the recorded input (compliance's
@@ -183,6 +185,7 @@ impl Prepared {
             load_position,
             load_acceleration_noise_var,
             intersample,
+            gear_ratio: rec.columns.gear_ratio,
             input_probe: None,
             input_noise_var: input_sigma * input_sigma,
             noise_probe: None,
@@ -238,6 +241,7 @@ impl Prepared {
             lowpass_hz: self.cutoff_hz,
             load_position: &self.load_position,
             intersample: self.intersample,
+            gear_ratio: self.gear_ratio,
         }
     }
 
@@ -315,6 +319,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         load_position: Vec::new(),
         load_acceleration_noise_var: 0.0,
         intersample,
+        gear_ratio: 1.0,
         input_probe: None,
         input_noise_var: 0.0,
         noise_probe: None,

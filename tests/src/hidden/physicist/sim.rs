@@ -178,6 +178,7 @@ impl Scenario {
                 _ => None,
             },
             load_position_true: Vec::new(),
+            gear_ratio: 1.0,
         };
         let mut trace = Trace {
             reference: self.plan.r[..n].to_vec(),
