@@ -742,7 +742,10 @@ pub fn supervise(a: SuperviseArgs) -> Result<()> {
         _ => None,
     });
     let (verdict, headline) = if stop.load(Ordering::Relaxed) {
-        (Verdict::Interrupted, format!("stopped by Ctrl-C after {ticks} ticks"))
+        (
+            Verdict::Interrupted,
+            format!("stopped by Ctrl-C after {ticks} ticks"),
+        )
     } else if let Some(w) = fault {
         (Verdict::Faulted, format!("the card reported a fault: {w}"))
     } else if let Some(w) = refused {
@@ -750,7 +753,10 @@ pub fn supervise(a: SuperviseArgs) -> Result<()> {
     } else if sup.phase() != Phase::Stopped {
         (
             Verdict::Incomplete,
-            format!("the script ended in phase {:?}, before it finished", sup.phase()),
+            format!(
+                "the script ended in phase {:?}, before it finished",
+                sup.phase()
+            ),
         )
     } else {
         return Ok(());
