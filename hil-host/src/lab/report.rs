@@ -333,16 +333,22 @@ impl Report {
                 )
             }
             Verdict::Ok => format!(
-                "ran all {} ticks; no card fault, no bus error frame, {}",
+                "ran all {} ticks; no card fault, no bus error frame, {}{}",
                 f.ticks_run,
                 if lost == 0 {
-                    "no lost frame".to_string()
+                    "no actuator frame lost".to_string()
                 } else {
                     format!(
                         "{lost} tick(s) without an actuator frame ({:.3} %, under the {:.2} % threshold)",
                         loss_share * 100.0,
                         f.max_loss * 100.0
                     )
+                },
+                // Losses on other links do not fail the run, but the headline must not
+                // read as if nothing was lost.
+                match f.links.iter().map(|(_, l)| l.dropped).sum::<u64>() {
+                    0 => String::new(),
+                    n => format!("; {n} frame(s) dropped on injected links (below)"),
                 }
             ),
         };
@@ -780,6 +786,30 @@ mod tests {
         assert_eq!(Report::judge(f.clone()).verdict, Verdict::Ok, "0.5 % < 1 %");
         f.tally.missing_rows = 50;
         assert_eq!(Report::judge(f).verdict, Verdict::Degraded, "5 % > 1 %");
+    }
+
+    /// A clean run whose supervisor lost telemetry on an injected link still passes, but its
+    /// headline says frames were dropped rather than "nothing lost".
+    #[test]
+    fn an_ok_headline_mentions_frames_dropped_on_injected_links() {
+        let r = Report::judge(facts());
+        assert!(!r.headline.contains("dropped"), "{}", r.headline);
+        let mut f = facts();
+        f.links.push((
+            Node::Supervisor,
+            LinkStats {
+                received: 300,
+                dropped: 90,
+                delayed: 0,
+            },
+        ));
+        let r = Report::judge(f);
+        assert_eq!(r.verdict, Verdict::Ok);
+        assert!(
+            r.headline.contains("90 frame(s) dropped on injected links"),
+            "{}",
+            r.headline
+        );
     }
 
     #[test]
