@@ -456,13 +456,21 @@ fn recordings_stream_to_disk_and_memory_stays_bounded() {
 
 // ------------------------------------------------------------------- defect 6: Ctrl-C
 
-fn interrupt(args: &[&str], after: Duration) -> Output {
+/// Runs the CLI and sends it SIGINT once `ready` (its CSV, created after the Ctrl-C handler
+/// is installed) holds rows, plus `after`: a fixed sleep alone would, on a loaded machine,
+/// signal a process that has no handler yet and kill it outright.
+fn interrupt(args: &[&str], ready: &std::path::Path, after: Duration) -> Output {
     let child = hil()
         .args(args)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
+    let give_up = Instant::now() + Duration::from_secs(120);
+    while std::fs::metadata(ready).map_or(0, |m| m.len()) < 4096 {
+        assert!(Instant::now() < give_up, "{} never filled", ready.display());
+        std::thread::sleep(Duration::from_millis(20));
+    }
     std::thread::sleep(after);
     let st = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
@@ -490,7 +498,8 @@ fn an_interrupted_run_exits_130_and_says_so() {
             "--csv",
             csv.to_str().unwrap(),
         ],
-        Duration::from_millis(1500),
+        &csv,
+        Duration::from_millis(500),
     );
     let out = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(130), "{}", text(&o));
@@ -515,7 +524,8 @@ fn an_interrupted_run_exits_130_and_says_so() {
             "--out",
             dir.to_str().unwrap(),
         ],
-        Duration::from_millis(1500),
+        &dir.join("demo-stiffness-whoi-cable-30.csv"),
+        Duration::from_millis(500),
     );
     assert_eq!(o.status.code(), Some(130), "{}", text(&o));
     assert!(
