@@ -9,24 +9,8 @@ use jointlab_tests::hidden::record::{
 };
 use std::f64::consts::TAU;
 
-const EXCITATIONS: [Excitation; 4] = [
-    Excitation::PdTracking,
-    Excitation::PidTracking,
-    Excitation::OpenLoopChirp,
-    Excitation::MultisinePrbs,
-];
-const FAMILIES: [Family; 10] = [
-    Family::Offset,
-    Family::Coulomb,
-    Family::Asymmetry,
-    Family::Stribeck,
-    Family::Backlash,
-    Family::Compliance,
-    Family::Ripple,
-    Family::Gravity,
-    Family::Delay,
-    Family::Quantization,
-];
+const EXCITATIONS: [Excitation; 4] = Excitation::ALL;
+const FAMILIES: [Family; 10] = Family::ALL;
 const RATES: [f64; 3] = [250.0, 1000.0, 5000.0];
 
 fn cond(rate: f64, logging: Logging, excitation: Excitation) -> Conditions {

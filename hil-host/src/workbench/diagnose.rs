@@ -846,22 +846,33 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
 /// a wrong convention leaves in the residual as a delay of either sign.
 fn intersample_note(model: &Model, p: &Prepared, opts: &Options, rss: f64) -> Option<String> {
     use sim_plant::effects::Intersample;
-    let (best, best_rss) = [Intersample::Zoh, Intersample::Foh, Intersample::Mid]
-        .into_iter()
-        .filter(|&i| i != p.intersample)
-        .filter_map(|is| {
-            let q = p.with_intersample(is);
-            let d = residual::design(model, &q);
-            fit::least_squares(&d.cols, &d.y).ok().map(|f| (is, f.rss))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let mut others: Vec<(Intersample, f64)> =
+        [Intersample::Zoh, Intersample::Foh, Intersample::Mid]
+            .into_iter()
+            .filter(|&i| i != p.intersample)
+            .filter_map(|is| {
+                let q = p.with_intersample(is);
+                let d = residual::design(model, &q);
+                fit::least_squares(&d.cols, &d.y).ok().map(|f| (is, f.rss))
+            })
+            .collect();
+    others.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let &(best, best_rss) = others.first()?;
     let gain = 1.0 - best_rss / rss;
     let explained_rms = ((rss - best_rss).max(0.0) / p.len() as f64).sqrt();
+    // Another that fits as well, to within the practical threshold, is named too: `mid` and
+    // `foh` differ by a sinc in the band, far less than the half sample either is from `zoh`.
+    let also: Vec<String> = others[1..]
+        .iter()
+        .filter(|(_, r)| (r - best_rss) < opts.min_err * rss)
+        .map(|(i, _)| format!(" (or `{i}`, nearly as well)"))
+        .collect();
     (gain >= opts.min_err && explained_rms >= opts.min_rho * p.practical_floor(rss)).then(|| {
         format!(
-            "the input fits {:.1} % better read as `{best}` ({}) than as `{}`: if that is how \
+            "the input fits {:.1} % better read as `{best}`{} ({}) than as `{}`: if that is how \
              the record was logged, pass --intersample {best}",
             100.0 * gain,
+            also.concat(),
             best.describe(),
             p.intersample
         )

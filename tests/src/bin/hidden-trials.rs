@@ -58,7 +58,7 @@ struct Bench {
     #[arg(long)]
     nulls_only: bool,
     /// State file (JSON lines) that makes the run resumable (default
-    /// target/hidden-trials-seed<S>.jsonl).
+    /// `target/hidden-trials-seed<S>.jsonl`).
     #[arg(long)]
     state: Option<PathBuf>,
     /// List the failed trials (on stderr) with their conditions.
@@ -261,7 +261,7 @@ fn main() {
     eprintln!(
         "{} trials, {} already in {} — running {}",
         jobs.len(),
-        jobs.len() - todo.len(),
+        jobs.iter().filter(|j| done.contains_key(j)).count(),
         state.display(),
         todo.len()
     );
@@ -423,6 +423,29 @@ fn report(results: &[&Done], fails: bool) {
                 "",
                 pct(rf, nf)
             );
+            // Where the rank-1 misses at ρ ≥ 0.5 fall, by recording condition.
+            let misses: Vec<&&&Outcome> = singles
+                .iter()
+                .filter(|o| o.rho >= 0.5 && !o.rank1_ok())
+                .collect();
+            if !misses.is_empty() {
+                let tally = |key: &dyn Fn(&Outcome) -> String| {
+                    let mut t: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+                    for o in singles.iter().filter(|o| o.rho >= 0.5) {
+                        let e = t.entry(key(o)).or_default();
+                        e.1 += 1;
+                        e.0 += usize::from(!o.rank1_ok());
+                    }
+                    t.iter()
+                        .map(|(k, (m, n))| format!("{k} {m}/{n}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                println!("rank-1 misses at ρ ≥ 0.5 by condition:");
+                println!("  rate: {}", tally(&|o| format!("{} Hz", o.rate_hz)));
+                println!("  encoder: {}", tally(&|o| format!("2^{}", o.encoder_bits)));
+                println!("  excitation: {}", tally(&|o| o.excitation.clone()));
+            }
             if fails {
                 for o in &singles {
                     let f = &o.families[0];

@@ -1,7 +1,7 @@
 //! The third truth: recordings from the HIL lab itself — the real card code against a
 //! `sim-plant` joint, logged as the lab's recorder logs a drive.
 //!
-//! Where [`super::truth`] is an independent simulator written for the trials, this one is the
+//! Where [`mod@super::truth`] is an independent simulator written for the trials, this one is the
 //! project's own stack end to end, so a workbench judged on it is judged on what a lab run
 //! would hand it:
 //!

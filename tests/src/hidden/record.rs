@@ -1,5 +1,5 @@
 //! What a truth is asked to simulate and what it hands back: the one interface between the
-//! independently written truths ([`super::truth`], [`super::physicist`], [`super::lab`]) and
+//! independently written truths ([`mod@super::truth`], [`super::physicist`], [`super::lab`]) and
 //! the harness. The workbench sees only `time`, `input`, `position` (and `load_position`); the
 //! referee ([`super::referee`]) sees the rest.
 

@@ -1,5 +1,5 @@
 //! The first truth behind the [`Truth`] interface: the RK4 two-mass LuGre joint of
-//! [`super::truth`], its plant and excitations drawn from the seed.
+//! [`mod@super::truth`], its plant and excitations drawn from the seed.
 //!
 //! * Plant: motor J1 1–10 g·m², load J2 3–30 g·m², viscous friction over a decade, a stiff
 //!   transmission (350 Hz) unless the hidden effect is compliance or backlash; backlash sits

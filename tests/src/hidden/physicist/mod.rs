@@ -1,4 +1,4 @@
-//! The second truth, written from scratch and independently of [`super::truth`] and of the
+//! The second truth, written from scratch and independently of [`mod@super::truth`] and of the
 //! workbench: a robot joint as a physicist would write it.
 //!
 //! Physics: a motor rotor and a load, rigid or joined by an elastic shaft or a gear mesh with
