@@ -234,7 +234,9 @@ mod tests {
                 bitrate: 1_000_000
             })
         );
-        let e = BusSpec::parse("slcan:/dev/ttyACM0,7").unwrap_err().to_string();
+        let e = BusSpec::parse("slcan:/dev/ttyACM0,7")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("bit rate 7"), "{e}");
         let e = BusSpec::parse("abcdefghijklmnop").unwrap_err().to_string();
         assert!(e.contains("15 bytes"), "{e}");

@@ -145,7 +145,12 @@ impl<S: Read + Send> Source for SocketSource<S> {
     fn read_some(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
         match self.0.read(buf) {
             Ok(n) => Ok(Some(n)),
-            Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                ) =>
+            {
                 Ok(None)
             }
             Err(e) if e.kind() == io::ErrorKind::Interrupted => Ok(None),
@@ -265,7 +270,8 @@ impl SlcanBus {
             SlcanTarget::Tcp(a) => {
                 let name = format!("slcan:tcp:{a}");
                 let s = std::net::TcpStream::connect(a).map_err(|e| io_err(&name, "connect", e))?;
-                s.set_nodelay(true).map_err(|e| io_err(&name, "connect", e))?;
+                s.set_nodelay(true)
+                    .map_err(|e| io_err(&name, "connect", e))?;
                 s.set_read_timeout(Some(Duration::from_millis(100)))
                     .map_err(|e| io_err(&name, "connect", e))?;
                 let r = s.try_clone().map_err(|e| io_err(&name, "connect", e))?;
@@ -356,7 +362,10 @@ impl SlcanBus {
         self.wait_acks(REPLY_TIMEOUT).map_err(|e| match e {
             BusError::Slcan { bus, reason } => BusError::Slcan {
                 bus,
-                reason: format!("command `{}`: {reason}", show(slcan::format(&cmd).as_bytes())),
+                reason: format!(
+                    "command `{}`: {reason}",
+                    show(slcan::format(&cmd).as_bytes())
+                ),
             },
             other => other,
         })
@@ -472,7 +481,9 @@ impl Drop for SlcanBus {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         // Close the channel politely; a peer that is already gone does not matter here.
-        let _ = self.writer.write_all(slcan::format(&Line::Close).as_bytes());
+        let _ = self
+            .writer
+            .write_all(slcan::format(&Line::Close).as_bytes());
         let _ = self.writer.flush();
         if let Some(c) = self.closer.take() {
             c();
@@ -589,7 +600,8 @@ mod tests {
         let mut bus = SlcanBus::from_unix(a, "test").unwrap();
         bus.set_synchronous(true);
         for _ in 0..3 {
-            bus.send(&ClassicFrame::std(0x181, &[1, 2]).unwrap()).unwrap();
+            bus.send(&ClassicFrame::std(0x181, &[1, 2]).unwrap())
+                .unwrap();
             assert_eq!(bus.pending_acks(), 0);
             let f = bus.recv_timeout(Duration::ZERO).unwrap().unwrap();
             assert_eq!(f, ClassicFrame::std(0x7FF, &[]).unwrap());
@@ -647,7 +659,9 @@ mod tests {
             SlcanTarget::parse("unix:/tmp/x").unwrap(),
             SlcanTarget::Unix("/tmp/x".into())
         );
-        assert!(SlcanTarget::parse("/dev/x,123").unwrap_err().contains("one of"));
+        assert!(SlcanTarget::parse("/dev/x,123")
+            .unwrap_err()
+            .contains("one of"));
         assert!(SlcanTarget::parse("tcp:nohost").is_err());
         assert!(SlcanTarget::parse("").is_err());
         let e = SlcanBus::open(&SlcanTarget::parse("/dev/no-such-adapter").unwrap())
