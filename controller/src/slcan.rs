@@ -216,11 +216,13 @@ pub fn parse(line: &[u8]) -> Result<Line, Error> {
 fn parse_frame(line: &[u8], cmd: u8) -> Result<Line, Error> {
     let extended = cmd == b'T' || cmd == b'R';
     let remote = cmd == b'r' || cmd == b'R';
-    let id_digits = if extended { 8 } else { 3 };
-    let dlc_at = 1 + id_digits;
+    // Command, identifier digits, length digit, data: small constants, so the sums below
+    // cannot overflow (wrapping only to satisfy the no-unchecked-arithmetic lint).
+    let (id_digits, dlc_at): (usize, usize) = if extended { (8, 9) } else { (3, 4) };
+    let data_at = dlc_at.wrapping_add(1);
     if line.len() <= dlc_at {
         return Err(Error::Length {
-            expected: len_u8(dlc_at + 1),
+            expected: len_u8(data_at),
             got: len_u8(line.len()),
         });
     }
@@ -234,8 +236,8 @@ fn parse_frame(line: &[u8], cmd: u8) -> Result<Line, Error> {
         return Err(Error::DlcTooLarge(len_u8(dlc as usize)));
     }
     let dlc = dlc as usize;
-    let data_digits = if remote { 0 } else { dlc.wrapping_mul(2) };
-    let expected = dlc_at + 1 + data_digits;
+    let data_bytes = if remote { 0 } else { dlc };
+    let expected = data_at.wrapping_add(data_bytes.wrapping_mul(2));
     let stamp = match line.len().checked_sub(expected) {
         Some(0) => None,
         Some(4) => Some(hex(line, expected, 4)? as u16),
@@ -247,8 +249,8 @@ fn parse_frame(line: &[u8], cmd: u8) -> Result<Line, Error> {
         }
     };
     let mut data = [0u8; 8];
-    for (i, b) in data.iter_mut().enumerate().take(data_digits / 2) {
-        *b = hex(line, dlc_at + 1 + 2 * i, 2)? as u8;
+    for (i, b) in data.iter_mut().enumerate().take(data_bytes) {
+        *b = hex(line, data_at.wrapping_add(i.wrapping_mul(2)), 2)? as u8;
     }
     Ok(Line::Frame(
         SlFrame {

@@ -15,7 +15,11 @@ fn frame() -> impl Strategy<Value = SlFrame> {
         any::<u32>(),
     )
         .prop_map(|(extended, remote, dlc, mut data, id)| {
-            let id = if extended { id & 0x1FFF_FFFF } else { id & 0x7FF };
+            let id = if extended {
+                id & 0x1FFF_FFFF
+            } else {
+                id & 0x7FF
+            };
             if remote {
                 data = [0; 8];
             } else {

@@ -44,13 +44,17 @@ fn image() -> &'static Path {
     IMG.get_or_init(|| build_image().expect("build the qemu-pil image"))
 }
 
-/// One lockstep lab run: (CSV bytes, candump bytes, summary rows as bits, ticks/s, frames).
-fn lab_run(
-    kind: ScenarioKind,
-    preset: &str,
-    seed: u64,
-    qemu: bool,
-) -> (Vec<u8>, Vec<u8>, Vec<(String, u64)>, String, f64) {
+/// What one lockstep lab run left behind.
+struct Outcome {
+    csv: Vec<u8>,
+    candump: Vec<u8>,
+    /// Summary figures as bits (equality is bit-identity, not approximate).
+    figures: Vec<(String, u64)>,
+    table: String,
+    cycles_per_s: f64,
+}
+
+fn lab_run(kind: ScenarioKind, preset: &str, seed: u64, qemu: bool) -> Outcome {
     let model = sim_plant::preset(preset).expect("preset");
     let sc = Scenario::new(kind, &model).expect("scenario");
     let opts = LabOptions {
@@ -81,13 +85,13 @@ fn lab_run(
         .map(|(n, v, _)| (n.clone(), v.to_bits()))
         .collect();
     drop(lab); // stops QEMU, closes the files
-    let out = (
-        std::fs::read(&csv).unwrap(),
-        std::fs::read(&log).unwrap(),
-        bits,
-        s.table(),
-        rate,
-    );
+    let out = Outcome {
+        csv: std::fs::read(&csv).unwrap(),
+        candump: std::fs::read(&log).unwrap(),
+        figures: bits,
+        table: s.table(),
+        cycles_per_s: rate,
+    };
     std::fs::remove_dir_all(&dir).ok();
     out
 }
@@ -96,26 +100,26 @@ fn assert_same(kind: ScenarioKind, preset: &str) {
     let host = lab_run(kind, preset, 7, false);
     let qemu = lab_run(kind, preset, 7, true);
     assert!(
-        host.0.len() > 50_000,
+        host.csv.len() > 50_000,
         "a full recording: {} bytes",
-        host.0.len()
+        host.csv.len()
     );
     assert_eq!(
-        host.2, qemu.2,
+        host.figures, qemu.figures,
         "summary figures differ:\nhost\n{}\nqemu\n{}",
-        host.3, qemu.3
+        host.table, qemu.table
     );
-    assert!(host.0 == qemu.0, "the CSV recordings differ");
-    assert!(host.1 == qemu.1, "the candump logs differ");
+    assert!(host.csv == qemu.csv, "the CSV recordings differ");
+    assert!(host.candump == qemu.candump, "the candump logs differ");
     println!(
         "[pil] {} on {preset}: CSV {} B, candump {} B, {} summary figures identical; host card {:.0} cycles/s, QEMU card {:.0} cycles/s\n{}",
         kind.name(),
-        host.0.len(),
-        host.1.len(),
-        host.2.len(),
-        host.4,
-        qemu.4,
-        qemu.3
+        host.csv.len(),
+        host.candump.len(),
+        host.figures.len(),
+        host.cycles_per_s,
+        qemu.cycles_per_s,
+        qemu.table
     );
 }
 

@@ -27,7 +27,7 @@ mod image {
     use controller::proto::{Message, NodeId, RawFrame};
     use controller::slcan::{self, Line, LineReader, SlFrame};
     use cortex_m::peripheral::syst::SystClkSource;
-        use cortex_m_rt::entry;
+    use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
     use firmware::uart::Uart;
 
