@@ -591,6 +591,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut card_bus = open(&a.sup.bus)?;
     let mut sup_bus = open(&a.sup.bus)?;
     let mut plant_bus = open(&a.sup.bus)?;
+    let qemu_card = a.card != CardChoice::Host;
     // QEMU is started (and the image built) before any thread, so a failure stops the run
     // before the plant waits for a card that is not there.
     let mut qemu = match &a.card {
@@ -629,7 +630,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         seed: a.seed,
         csv: a.csv.clone(),
         candump: a.candump.clone(),
-        timeout_ms: 200,
+        // An emulated card answers in about a millisecond, but a loaded host can stall QEMU
+        // for much longer; in lockstep a late answer is still the right one.
+        timeout_ms: if qemu_card { 2000 } else { 200 },
         quiet: a.sup.quiet,
     };
     let res = plant_loop(&pa, plant_bus.as_mut(), &model, Some(&sc), &stop);
