@@ -17,6 +17,7 @@ use crate::lab::card_node::CardNode;
 use crate::lab::gains;
 use crate::lab::plant_node::PlantNode;
 use crate::lab::plot::plot_run;
+use crate::lab::qemu_card::{resolve_image, run_qemu_card, CardChoice, QemuCard};
 use crate::lab::recorder::Recorder;
 use crate::lab::scenario::{Scenario, ScenarioKind};
 use crate::lab::summary::summarize;
@@ -29,12 +30,15 @@ use crate::lab::{Lab, LabOptions};
 pub const DEMO_EXAMPLES: &str = "Examples:
   hil-host demo                                   # stiffness emulation on the WHOI cable reducer
   hil-host demo --scenario all --preset harmonic-drive-60
-  hil-host demo --scenario backlash --preset cyclo-29 --out results/";
+  hil-host demo --scenario backlash --preset cyclo-29 --out results/
+  hil-host demo --card qemu --scenario step       # the firmware image under QEMU as the card";
 /// `run` examples.
 pub const RUN_EXAMPLES: &str = "Examples:
   hil-host run --bus vcan0 --scenario step --preset harmonic-drive-60
   hil-host run --bus vcan0 --scenario stiffness --realtime --csv run.csv --candump run.log
-  hil-host run --bus inproc --scenario damper        # threads on the in-process bus";
+  hil-host run --bus inproc --scenario damper        # threads on the in-process bus
+  hil-host run --bus inproc --card qemu --scenario step   # processor-in-the-loop (QEMU, SLCAN)
+  hil-host run --bus vcan0 --card qemu --realtime    # the QEMU card against the wall clock";
 /// `card` examples.
 pub const CARD_EXAMPLES: &str = "Examples:
   hil-host card --bus vcan0 --node 1
@@ -141,6 +145,10 @@ pub struct DemoArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// The card: `host` (this process), `qemu` (the firmware's qemu-pil image under
+    /// qemu-system-arm, built if needed) or `qemu:IMAGE`.
+    #[arg(long, default_value = "host")]
+    pub card: CardChoice,
 }
 
 fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
@@ -167,16 +175,20 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
+    let image = match &a.card {
+        CardChoice::Host => None,
+        CardChoice::Qemu(p) => Some(resolve_image(p.as_deref())?),
+    };
     for kind in scenarios(&a.scenario)? {
         let sc = Scenario::new(kind, &model)?;
-        let mut lab = Lab::new(
-            &model,
-            sc,
-            &LabOptions {
-                seed: a.seed,
-                ..LabOptions::default()
-            },
-        )?;
+        let opts = LabOptions {
+            seed: a.seed,
+            ..LabOptions::default()
+        };
+        let mut lab = Lab::new(&model, sc, &opts)?;
+        if let Some(img) = &image {
+            lab.use_qemu_card(QemuCard::spawn(img, opts.node, false)?);
+        }
         let stem = a
             .out
             .join(format!("demo-{}-{}", kind.name(), a.plant.label()));
@@ -189,10 +201,12 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         lab.recorder.write_candump(&log, "inproc")?;
         let pb = bar(lab.scenario.ticks(), a.quiet);
         let n = lab.scenario.ticks();
+        let t0 = std::time::Instant::now();
         while lab.time() * 1000.0 < n as f64 && !stop.load(Ordering::Relaxed) {
             lab.step()?;
             pb.set_position((lab.time() * 1000.0) as u64);
         }
+        let wall = t0.elapsed().as_secs_f64();
         pb.finish_and_clear();
         lab.recorder.flush()?;
         // Every file is complete before anything is printed (stdout may be a closed pipe).
@@ -209,6 +223,15 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             a.seed
         );
         println!("{}", lab.summary().table());
+        if let Some(q) = lab.qemu_card() {
+            // Not in the table: the table is what must equal the host card's.
+            println!(
+                "  card: {}; {} frames over SLCAN, {:.0} cycles/s",
+                a.card.label(),
+                q.frames_sent(),
+                lab.time() * 1000.0 / wall.max(1e-9)
+            );
+        }
         for e in &lab.supervisor.events {
             if !matches!(e, Event::Committed) {
                 println!("  supervisor: {e:?}");
@@ -551,6 +574,10 @@ pub struct RunArgs {
     /// Write a PNG plot here.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// The card: `host` (a thread of this process), `qemu` (the firmware's qemu-pil image
+    /// under qemu-system-arm, a thread relaying the bus to it over SLCAN) or `qemu:IMAGE`.
+    #[arg(long, default_value = "host")]
+    pub card: CardChoice,
 }
 
 /// Card, plant and supervisor as threads, each with its own handle on the bus.
@@ -564,12 +591,28 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut card_bus = open(&a.sup.bus)?;
     let mut sup_bus = open(&a.sup.bus)?;
     let mut plant_bus = open(&a.sup.bus)?;
+    let qemu_card = a.card != CardChoice::Host;
+    // QEMU is started (and the image built) before any thread, so a failure stops the run
+    // before the plant waits for a card that is not there.
+    let mut qemu = match &a.card {
+        CardChoice::Host => None,
+        CardChoice::Qemu(p) => Some(QemuCard::spawn(
+            &resolve_image(p.as_deref())?,
+            n,
+            !lockstep,
+        )?),
+    };
     let done = Arc::new(AtomicBool::new(false));
     let card_thread = {
         let done = done.clone();
-        std::thread::spawn(move || -> Result<()> {
+        std::thread::spawn(move || -> Result<Option<QemuCard>> {
+            if let Some(q) = qemu.as_mut() {
+                run_qemu_card(card_bus.as_mut(), q, lockstep, &done)?;
+                return Ok(qemu);
+            }
             let mut card = CardNode::new(n, lockstep).map_err(|e| anyhow!("{e:?}"))?;
-            run_card(card_bus.as_mut(), &mut card, lockstep, &done)
+            run_card(card_bus.as_mut(), &mut card, lockstep, &done)?;
+            Ok(None)
         })
     };
     let sup_thread = {
@@ -587,7 +630,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         seed: a.seed,
         csv: a.csv.clone(),
         candump: a.candump.clone(),
-        timeout_ms: 200,
+        // An emulated card answers in about a millisecond, but a loaded host can stall QEMU
+        // for much longer; in lockstep a late answer is still the right one.
+        timeout_ms: if qemu_card { 2000 } else { 200 },
         quiet: a.sup.quiet,
     };
     let res = plant_loop(&pa, plant_bus.as_mut(), &model, Some(&sc), &stop);
@@ -595,7 +640,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let sup = sup_thread
         .join()
         .map_err(|_| anyhow!("supervisor thread panicked"))??;
-    card_thread
+    let qemu = card_thread
         .join()
         .map_err(|_| anyhow!("card thread panicked"))??;
     let (st, rec) = res?;
@@ -609,6 +654,13 @@ pub fn run(a: RunArgs) -> Result<()> {
     );
     println!("{}", summarize(&sc, &rec.rows, exact, worst).table());
     print_plant_stats(&st);
+    if let Some(q) = &qemu {
+        println!(
+            "  card: {}; {} frames over SLCAN",
+            a.card.label(),
+            q.frames_sent()
+        );
+    }
     for e in &sup.events {
         if !matches!(e, Event::Committed) {
             println!("  supervisor: {e:?}");
@@ -736,6 +788,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
             csv: None,
             candump: None,
             plot: None,
+            card: CardChoice::Host,
         };
         println!("\n{bus}, three threads, lockstep:");
         run(ra)?;

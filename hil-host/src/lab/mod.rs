@@ -11,12 +11,16 @@
 //!
 //! [`Lab`] runs all three nodes in one thread in lockstep on the in-process bus (the
 //! zero-setup demo and the deterministic tests); [`threaded`] runs each node on its own bus
-//! handle — threads in one process or separate processes on `vcan0`/`can0`.
+//! handle — threads in one process or separate processes on `vcan0`/`can0`. With
+//! [`Lab::use_qemu_card`] the card is the firmware image under QEMU ([`qemu_card`]) and the
+//! lab's card handle only relays frames to it: processor-in-the-loop, still in lockstep.
 
 pub mod card_node;
 pub mod gains;
 pub mod plant_node;
 pub mod plot;
+#[cfg(unix)]
+pub mod qemu_card;
 pub mod recorder;
 pub mod scenario;
 pub mod summary;
@@ -24,7 +28,7 @@ pub mod supervisor;
 pub mod threaded;
 pub mod trajectory;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::{Message, NodeId};
 use sim_plant::{Model, Plant, PlantOptions};
 
@@ -86,6 +90,9 @@ pub struct Lab {
     pub supervisor_dies_at: Option<u64>,
     /// Ticks from which the plant stops sending sensor frames.
     pub plant_dies_at: Option<u64>,
+    /// The card under QEMU, when it replaces [`Lab::card`].
+    #[cfg(unix)]
+    qemu: Option<qemu_card::QemuCard>,
 }
 
 impl Lab {
@@ -131,7 +138,23 @@ impl Lab {
             tick: 0,
             supervisor_dies_at: None,
             plant_dies_at: None,
+            #[cfg(unix)]
+            qemu: None,
         })
+    }
+
+    /// Runs the card as the firmware image under QEMU from now on (before the first step):
+    /// the frames [`Lab::card`] would have handled go to `card` over SLCAN, and its answers
+    /// go on the bus in the same place. `Lab::card` then stays idle.
+    #[cfg(unix)]
+    pub fn use_qemu_card(&mut self, card: qemu_card::QemuCard) {
+        self.qemu = Some(card);
+    }
+
+    /// The QEMU card, if the lab runs one.
+    #[cfg(unix)]
+    pub fn qemu_card(&self) -> Option<&qemu_card::QemuCard> {
+        self.qemu.as_ref()
     }
 
     /// The bus hub (for load statistics).
@@ -173,6 +196,22 @@ impl Lab {
             }
         }
         // 3. card: everything queued, in bus order
+        #[cfg(unix)]
+        if let Some(q) = self.qemu.as_mut() {
+            // One exchange per tick: the image answers each frame before acknowledging it,
+            // so its answers come back in the order the host card would have sent them, and
+            // nobody else sends on the bus during this step.
+            let mut batch = Vec::new();
+            while let Some(f) = self.card_bus.try_recv()? {
+                batch.push(f);
+            }
+            for g in q.exchange(&batch)? {
+                self.card_bus.send(&g)?;
+            }
+            if !plant_alive {
+                bail!("the QEMU card's lockstep clock is its sensor frames: a dead plant cannot be emulated (use the host card)");
+            }
+        }
         while let Some(f) = self.card_bus.try_recv()? {
             let out = self.card.on_frame(0, &f);
             for g in out.frames {
