@@ -38,4 +38,5 @@ pub mod laws;
 pub mod power_stage;
 pub mod proto;
 pub mod sensing;
+pub mod slcan;
 pub mod units;

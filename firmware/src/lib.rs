@@ -41,3 +41,5 @@ pub mod host;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 pub mod semihosting;
 pub mod stream;
+#[cfg(all(target_os = "none", feature = "qemu"))]
+pub mod uart;

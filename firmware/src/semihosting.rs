@@ -58,3 +58,31 @@ impl Drop for HostFile {
         }
     }
 }
+
+/// The command line QEMU was given for the image (`-semihosting-config …,arg=A,arg=B`: the
+/// arguments joined by spaces), written into `buf`; `None` if the host has none.
+pub fn cmdline(buf: &mut [u8]) -> Option<&[u8]> {
+    let mut block = [buf.as_mut_ptr() as usize, buf.len()];
+    // SAFETY: SYS_GET_CMDLINE writes at most `block[1]` bytes to `block[0]` (our exclusively
+    // borrowed `buf`) and the length it wrote into `block[1]`; `block` outlives the call.
+    let r = unsafe { cortex_m_semihosting::syscall1(nr::GET_CMDLINE, block.as_mut_ptr() as usize) };
+    if r != 0 {
+        return None;
+    }
+    let [_, len] = block;
+    buf.get(..len)
+}
+
+/// Host time since QEMU started, ns (`SYS_ELAPSED`; QEMU counts in nanoseconds,
+/// `SYS_TICKFREQ` = 10⁹): the PIL image's real-time clock.
+pub fn elapsed_ns() -> u64 {
+    let mut block = [0usize; 2];
+    // SAFETY: SYS_ELAPSED writes two words (the 64-bit count, low word first) into `block`,
+    // which is exclusively borrowed for the call.
+    let r = unsafe { cortex_m_semihosting::syscall1(nr::ELAPSED, block.as_mut_ptr() as usize) };
+    if r != 0 {
+        return 0;
+    }
+    let [lo, hi] = block;
+    (hi as u64).wrapping_shl(32) | lo as u64
+}

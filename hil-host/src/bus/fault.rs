@@ -428,6 +428,15 @@ pub enum BusError {
         /// Why it was rejected.
         reason: String,
     },
+    /// The SLCAN link misbehaved: a line that is not SLCAN, a refused command (BELL), no
+    /// answer in time, the device or QEMU gone.
+    #[error("SLCAN link `{bus}`: {reason}")]
+    Slcan {
+        /// Bus name.
+        bus: String,
+        /// What happened, with the offending line if there was one.
+        reason: String,
+    },
     /// A frame that the transport cannot carry.
     #[error("frame cannot be sent on `{bus}`: {reason}")]
     Unrepresentable {

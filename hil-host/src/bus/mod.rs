@@ -9,7 +9,10 @@
 //! * [`Impaired`]: any node's receive side with injected losses, delays and jitter.
 //! * [`SocketCanBus`] (Linux): `socketcan::CanSocket` with error frames decoded into
 //!   [`BusFault`]s.
-//! * [`open_bus`]: `"inproc"`/`"mem"` (optionally `":name"`) or an interface name.
+//! * [`SlcanBus`]: a node behind a serial line speaking SLCAN (a USB adapter, or the
+//!   firmware's QEMU image on a socket).
+//! * [`open_bus`]: `"inproc"`/`"mem"` (optionally `":name"`), `"slcan:…"`, or an interface
+//!   name.
 //!
 //! Errors: every operation returns [`BusError`]. A received CAN error frame is returned as
 //! `Err(BusError::Fault { .. })` from `recv_timeout` (like `embedded_can::blocking::Can`
@@ -21,6 +24,7 @@ pub mod fault;
 pub mod frame;
 pub mod impair;
 pub mod inproc;
+pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan_bus;
 
@@ -35,6 +39,7 @@ pub use fault::{BusError, BusFault, Direction, FaultCause, Severity, VCAN_HOWTO}
 pub use frame::{convert, ClassicFrame};
 pub use impair::{Impaired, LinkClock, LinkFault, LinkStats};
 pub use inproc::{BusStats, InprocBus, InprocHub};
+pub use slcan::{SlcanBus, SlcanTarget};
 
 /// A node's connection to a CAN bus.
 ///
@@ -138,10 +143,13 @@ pub enum BusSpec {
     Inproc(String),
     /// A SocketCAN network interface (`vcan0`, `can0`, …).
     SocketCan(String),
+    /// An SLCAN line (`slcan:/dev/ttyACM0`, `slcan:unix:PATH`, `slcan:tcp:HOST:PORT`).
+    Slcan(SlcanTarget),
 }
 
 impl BusSpec {
-    /// Parses `inproc`, `mem`, `inproc:NAME`, `mem:NAME`, or a Linux interface name.
+    /// Parses `inproc`, `mem`, `inproc:NAME`, `mem:NAME`, `slcan:…`, or a Linux interface
+    /// name.
     pub fn parse(spec: &str) -> Result<Self, BusError> {
         let bad = |reason: &str| BusError::BadSpec {
             spec: spec.to_string(),
@@ -159,6 +167,11 @@ impl BusSpec {
                 return Ok(BusSpec::Inproc(name.to_string()));
             }
         }
+        if let Some(rest) = s.strip_prefix("slcan:") {
+            return SlcanTarget::parse(rest)
+                .map(BusSpec::Slcan)
+                .map_err(|r| bad(&r));
+        }
         if s.is_empty() {
             return Err(bad(
                 "empty; use `inproc` or an interface name such as vcan0",
@@ -172,7 +185,8 @@ impl BusSpec {
         {
             return Err(bad(
                 "not an interface name (no '/', ':', spaces or control characters); \
-                 use `inproc`, `inproc:NAME`, `mem` or an interface such as vcan0/can0",
+                 use `inproc`, `inproc:NAME`, `mem`, `slcan:/dev/ttyACM0` or an interface \
+                 such as vcan0/can0",
             ));
         }
         Ok(BusSpec::SocketCan(s.to_string()))
@@ -181,7 +195,8 @@ impl BusSpec {
 
 /// Opens a bus by spec: `"inproc"`/`"mem"` (optionally `":NAME"`) attaches a new node to the
 /// process-wide in-process hub of that name (so card, plant and supervisor threads that each
-/// call `open_bus("inproc")` share one bus); anything else is a SocketCAN interface name.
+/// call `open_bus("inproc")` share one bus); `"slcan:…"` opens an SLCAN line; anything else
+/// is a SocketCAN interface name.
 pub fn open_bus(spec: &str) -> Result<Box<dyn CanBus>, BusError> {
     match BusSpec::parse(spec)? {
         BusSpec::Inproc(name) => Ok(Box::new(InprocHub::named(&name).attach(spec.trim()))),
@@ -189,6 +204,7 @@ pub fn open_bus(spec: &str) -> Result<Box<dyn CanBus>, BusError> {
         BusSpec::SocketCan(iface) => Ok(Box::new(SocketCanBus::open(&iface)?)),
         #[cfg(not(target_os = "linux"))]
         BusSpec::SocketCan(iface) => Err(BusError::NoCanSupport { iface }),
+        BusSpec::Slcan(t) => Ok(Box::new(SlcanBus::open(&t)?)),
     }
 }
 
@@ -214,6 +230,17 @@ mod tests {
         assert!(BusSpec::parse("inproc:").is_err());
         assert!(BusSpec::parse("a/b").is_err());
         assert!(BusSpec::parse("udp:1.2.3.4").is_err());
+        assert_eq!(
+            BusSpec::parse("slcan:/dev/ttyACM0").unwrap(),
+            BusSpec::Slcan(SlcanTarget::Device {
+                path: "/dev/ttyACM0".into(),
+                bitrate: 1_000_000
+            })
+        );
+        let e = BusSpec::parse("slcan:/dev/ttyACM0,7")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bit rate 7"), "{e}");
         let e = BusSpec::parse("abcdefghijklmnop").unwrap_err().to_string();
         assert!(e.contains("15 bytes"), "{e}");
     }

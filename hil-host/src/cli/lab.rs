@@ -18,6 +18,7 @@ use crate::lab::gains;
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
 use crate::lab::plant_node::PlantNode;
 use crate::lab::plot::plot_recording;
+use crate::lab::qemu_card::{resolve_image, run_qemu_card, CardChoice, QemuCard};
 use crate::lab::recorder::{read_rows, Recorder};
 use crate::lab::report::{self, CardFacts, Facts, Report, RunFailed, SupervisorFacts, Verdict};
 use crate::lab::scenario::{Scenario, ScenarioKind};
@@ -45,14 +46,17 @@ pub const DEMO_EXAMPLES: &str = "Examples:
   hil-host demo --scenario all --preset harmonic-drive-60
   hil-host demo --scenario backlash --preset cyclo-29 --out results/
   hil-host demo --scenario step --inject bus-off@1.0 --json
-  hil-host demo --seconds 600 --recover --inject drop:card=2%@60+10 --inject stall-plant@120+0.05";
+  hil-host demo --seconds 600 --recover --inject drop:card=2%@60+10 --inject stall-plant@120+0.05
+  hil-host demo --card qemu --scenario step       # the firmware image under QEMU as the card";
 /// `run` examples.
 pub const RUN_EXAMPLES: &str = "Examples:
   hil-host run --bus vcan0 --scenario step --preset harmonic-drive-60
   hil-host run --bus vcan0 --scenario stiffness --realtime --csv run.csv --candump run.log
   hil-host run --bus inproc --scenario damper        # threads on the in-process bus
   hil-host run --bus inproc --realtime --inject stall-plant@2+0.005 --sensor-timeout-us 3000
-  hil-host run --bus inproc --scenario step --die-after 500   # the card's watchdog stops the joint";
+  hil-host run --bus inproc --scenario step --die-after 500   # the card's watchdog stops the joint
+  hil-host run --bus inproc --card qemu --scenario step   # processor-in-the-loop (QEMU, SLCAN)
+  hil-host run --bus vcan0 --card qemu --realtime    # the QEMU card against the wall clock";
 /// `card` examples.
 pub const CARD_EXAMPLES: &str = "Examples:
   hil-host card --bus vcan0 --node 1
@@ -215,6 +219,10 @@ pub struct DemoArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// The card: `host` (this process), `qemu` (the firmware's qemu-pil image under
+    /// qemu-system-arm, built if needed) or `qemu:IMAGE`.
+    #[arg(long, default_value = "host")]
+    pub card: CardChoice,
 }
 
 fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
@@ -255,6 +263,10 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     let stop = stop_on_ctrl_c();
+    let image = match &a.card {
+        CardChoice::Host => None,
+        CardChoice::Qemu(p) => Some(resolve_image(p.as_deref())?),
+    };
     let mut reports = vec![];
     for kind in kinds {
         let mut sc = Scenario::new(kind, &model)?;
@@ -262,16 +274,16 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             sc.duration_s = s;
         }
         sc.gains.sensor_timeout_us = a.sensor_timeout_us;
-        let mut lab = Lab::new(
-            &model,
-            sc,
-            &LabOptions {
-                seed: a.seed,
-                faults: plan.clone(),
-                max_loss: a.report.max_loss,
-                ..LabOptions::default()
-            },
-        )?;
+        let opts = LabOptions {
+            seed: a.seed,
+            faults: plan.clone(),
+            max_loss: a.report.max_loss,
+            ..LabOptions::default()
+        };
+        let mut lab = Lab::new(&model, sc, &opts)?;
+        if let Some(img) = &image {
+            lab.use_qemu_card(QemuCard::spawn(img, opts.node, false)?);
+        }
         lab.supervisor.set_recovery(a.recover);
         let stem = a
             .out
@@ -285,6 +297,7 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         lab.recorder.write_candump(&log, "inproc")?;
         let n = lab.scenario.ticks();
         let pb = bar(n, a.quiet || a.report.json);
+        let t0 = std::time::Instant::now();
         while lab.ticks() < n && !stop.load(Ordering::Relaxed) {
             lab.step()
                 .with_context(|| format!("{} at tick {}", kind.name(), lab.ticks()))?;
@@ -292,6 +305,7 @@ pub fn demo(a: DemoArgs) -> Result<()> {
                 pb.set_position(lab.ticks());
             }
         }
+        let wall = t0.elapsed().as_secs_f64();
         pb.finish_and_clear();
         lab.recorder.flush()?;
         let interrupted = lab.ticks() < n;
@@ -302,6 +316,15 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             a.seed
         );
         let mut r = lab.report(&title, interrupted)?;
+        if let Some(q) = lab.qemu_card() {
+            // Not in the table: the table is what must equal the host card's.
+            r.details.push(format!(
+                "card: {}; {} frames over SLCAN, {:.0} cycles/s",
+                a.card.label(),
+                q.frames_sent(),
+                lab.ticks() as f64 / wall.max(1e-9)
+            ));
+        }
         // Every file is complete before anything is printed (stdout may be a closed pipe).
         plot_recording(
             &png,
@@ -788,6 +811,10 @@ pub struct RunArgs {
     pub inject: Vec<String>,
     #[command(flatten)]
     pub report: ReportArgs,
+    /// The card: `host` (a thread of this process), `qemu` (the firmware's qemu-pil image
+    /// under qemu-system-arm, a thread relaying the bus to it over SLCAN) or `qemu:IMAGE`.
+    #[arg(long, default_value = "host")]
+    pub card: CardChoice,
 }
 
 /// Checks that the bus and the clock can produce the faults asked for.
@@ -867,14 +894,31 @@ pub fn run(a: RunArgs) -> Result<()> {
         });
     }
     sup.set_silent_windows(silent);
+    let qemu_card = a.card != CardChoice::Host;
+    // QEMU is started (and the image built) before any thread, so a failure stops the run
+    // before the plant waits for a card that is not there.
+    let mut qemu = match &a.card {
+        CardChoice::Host => None,
+        CardChoice::Qemu(p) => Some(QemuCard::spawn(
+            &resolve_image(p.as_deref())?,
+            n,
+            !lockstep,
+        )?),
+    };
     let done = Arc::new(AtomicBool::new(false));
     let card_thread = {
         let done = done.clone();
-        std::thread::spawn(move || -> Result<(CardNode, LinkStats)> {
-            let mut card = CardNode::new(n, lockstep).map_err(|e| anyhow!("{e:?}"))?;
-            run_card(&mut card_bus, &mut card, lockstep, &done)?;
-            Ok((card, card_bus.stats()))
-        })
+        std::thread::spawn(
+            move || -> Result<(Option<CardNode>, Option<QemuCard>, LinkStats)> {
+                if let Some(q) = qemu.as_mut() {
+                    run_qemu_card(&mut card_bus, q, lockstep, &done)?;
+                    return Ok((None, qemu, card_bus.stats()));
+                }
+                let mut card = CardNode::new(n, lockstep).map_err(|e| anyhow!("{e:?}"))?;
+                run_card(&mut card_bus, &mut card, lockstep, &done)?;
+                Ok((Some(card), None, card_bus.stats()))
+            },
+        )
     };
     let sup_thread = {
         let done = done.clone();
@@ -891,7 +935,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         seed: a.seed,
         csv: a.csv.clone(),
         candump: a.candump.clone(),
-        timeout_ms: 200,
+        // An emulated card answers in about a millisecond, but a loaded host can stall QEMU
+        // for much longer; in lockstep a late answer is still the right one.
+        timeout_ms: if qemu_card { 2000 } else { 200 },
         sensor_timeout_us: a.sup.sensor_timeout_us,
         report: a.report.clone(),
         quiet: a.sup.quiet,
@@ -908,12 +954,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let (sup, sup_link) = sup_thread
         .join()
         .map_err(|_| anyhow!("supervisor thread panicked"))??;
-    let (card, card_link) = card_thread
+    let (card, qemu, card_link) = card_thread
         .join()
         .map_err(|_| anyhow!("card thread panicked"))??;
     let (st, mut rec) = res?;
     let ticks = (pa.seconds * 1000.0).round() as u64;
-    let c = card.card();
     let title = format!(
         "{} on {} over {} ({})",
         sc.kind.name(),
@@ -927,11 +972,15 @@ pub fn run(a: RunArgs) -> Result<()> {
         &st,
         &mut rec,
         Some(&sc),
-        Some(CardFacts {
-            state: c.state(),
-            fault: c.fault(),
-            bus_warnings: c.bus_warnings(),
-            sensor_frames_lost: c.sensor_frames_lost(),
+        // An emulated card's state is inside QEMU: the report reads it from the bus only.
+        card.as_ref().map(|c| {
+            let c = c.card();
+            CardFacts {
+                state: c.state(),
+                fault: c.fault(),
+                bus_warnings: c.bus_warnings(),
+                sensor_frames_lost: c.sensor_frames_lost(),
+            }
         }),
         Some(SupervisorFacts {
             phase: sup.phase(),
@@ -951,6 +1000,13 @@ pub fn run(a: RunArgs) -> Result<()> {
         &a.report,
         stop.load(Ordering::Relaxed) && st.ticks < ticks,
     )?;
+    if let Some(q) = &qemu {
+        r.details.push(format!(
+            "card: {}; {} frames over SLCAN",
+            a.card.label(),
+            q.frames_sent()
+        ));
+    }
     if let Some(p) = &a.plot {
         let csv = rec
             .csv_path()
@@ -1097,6 +1153,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 json: false,
                 max_loss: report::MAX_LOSS,
             },
+            card: CardChoice::Host,
         };
         println!("\n{bus}, three threads, lockstep:");
         run(ra)?;

@@ -11,7 +11,9 @@
 //!
 //! [`Lab`] runs all three nodes in one thread in lockstep on the in-process bus (the
 //! zero-setup demo and the deterministic tests); [`threaded`] runs each node on its own bus
-//! handle — threads in one process or separate processes on `vcan0`/`can0`.
+//! handle — threads in one process or separate processes on `vcan0`/`can0`. With
+//! [`Lab::use_qemu_card`] the card is the firmware image under QEMU ([`qemu_card`]) and the
+//! lab's card handle only relays frames to it: processor-in-the-loop, still in lockstep.
 //!
 //! Faults can be injected on purpose ([`inject`]); every run ends in a [`report::Report`]
 //! whose verdict (ok, degraded, faulted, incomplete, interrupted) sets the exit code, and
@@ -23,6 +25,8 @@ pub mod inject;
 pub mod mem;
 pub mod plant_node;
 pub mod plot;
+#[cfg(unix)]
+pub mod qemu_card;
 pub mod recorder;
 pub mod report;
 pub mod scenario;
@@ -35,7 +39,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::{Message, NodeId};
 use sim_plant::{Model, Plant, PlantOptions};
 
@@ -115,6 +119,9 @@ pub struct Lab {
     pub supervisor_dies_at: Option<u64>,
     /// Ticks from which the plant stops sending sensor frames.
     pub plant_dies_at: Option<u64>,
+    /// The card under QEMU, when it replaces [`Lab::card`].
+    #[cfg(unix)]
+    qemu: Option<qemu_card::QemuCard>,
 }
 
 impl Lab {
@@ -192,7 +199,31 @@ impl Lab {
             plant_bus_faults: BTreeMap::new(),
             supervisor_dies_at: None,
             plant_dies_at: None,
+            #[cfg(unix)]
+            qemu: None,
         })
+    }
+
+    /// Runs the card as the firmware image under QEMU from now on (before the first step):
+    /// the frames [`Lab::card`] would have handled go to `card` over SLCAN, and its answers
+    /// go on the bus in the same place. `Lab::card` then stays idle.
+    #[cfg(unix)]
+    pub fn use_qemu_card(&mut self, card: qemu_card::QemuCard) {
+        self.qemu = Some(card);
+    }
+
+    /// The QEMU card, if the lab runs one.
+    #[cfg(unix)]
+    pub fn qemu_card(&self) -> Option<&qemu_card::QemuCard> {
+        self.qemu.as_ref()
+    }
+
+    /// Whether the card is the firmware image under QEMU rather than [`Lab::card`].
+    pub fn emulated(&self) -> bool {
+        #[cfg(unix)]
+        return self.qemu.is_some();
+        #[cfg(not(unix))]
+        false
     }
 
     /// The bus hub (for load statistics, or to inject an error frame by hand).
@@ -252,6 +283,29 @@ impl Lab {
         // 3. card: everything queued, in bus order; an error frame goes to its bus-fault
         //    handling. Without its tick (a lost or late sensor frame, a stalled plant) the
         //    card's clock still runs, so its timeouts fire.
+        let emulated = self.emulated();
+        #[cfg(unix)]
+        if let Some(q) = self.qemu.as_mut() {
+            // One exchange per tick: the image answers each frame before acknowledging it,
+            // so its answers come back in the order the host card would have sent them, and
+            // nobody else sends on the bus during this step. SLCAN carries data frames only:
+            // error frames do not reach the emulated card (the recorder still logs them).
+            let mut batch = Vec::new();
+            loop {
+                match self.card_bus.try_recv() {
+                    Ok(Some(f)) => batch.push(f),
+                    Ok(None) => break,
+                    Err(BusError::Fault { .. }) => {}
+                    Err(e) => return Err(e.into()),
+                }
+            }
+            for g in q.exchange(&batch)? {
+                self.card_bus.send(&g)?;
+            }
+            if !plant_alive {
+                bail!("the QEMU card's lockstep clock is its sensor frames: a dead or stalled plant cannot be emulated (use the host card)");
+            }
+        }
         let mut ticked = false;
         loop {
             let out = match self.card_bus.try_recv() {
@@ -268,7 +322,7 @@ impl Lab {
                 self.card_bus.send(&g)?;
             }
         }
-        if !ticked {
+        if !ticked && !emulated {
             let out = self.card.on_idle(self.tick * 1000);
             for g in out.frames {
                 self.card_bus.send(&g)?;
@@ -347,7 +401,9 @@ impl Lab {
             missing_actuator: self.plant.missing,
             stale_actuator: self.plant.stale,
             plant_bus_faults: self.plant_bus_faults.clone(),
-            card: Some(CardFacts {
+            // An emulated card's own state is inside QEMU; the report then reads the card
+            // from the bus (its fault frames) only.
+            card: (!self.emulated()).then(|| CardFacts {
                 state: card.state(),
                 fault: card.fault(),
                 bus_warnings: card.bus_warnings(),

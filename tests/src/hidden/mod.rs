@@ -394,6 +394,13 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
         let run = refine::auto(&mut m, &pe, None, &opts, 3).map_err(|e| format!("--auto: {e}"))?;
         let added: Vec<Option<String>> =
             run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
+        if debug {
+            eprintln!(
+                "--auto after compliance: {added:?}, stop: {}\n{}",
+                run.stop,
+                run.last.to_text()
+            );
+        }
         out.backlash_after_compliance = Some(
             added.first() == Some(&Some("compliance".into()))
                 && added.get(1) == Some(&Some("backlash".into())),
