@@ -86,7 +86,7 @@ pub struct DataArgs {
     /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Differentiator cut-off, Hz (default: a tenth of the sample rate).
+    /// Differentiator cut-off, Hz (default: a tenth of the sample rate, at most 100 Hz; a transmission mode above that needs a higher one).
     #[arg(long)]
     pub cutoff: Option<f64>,
     /// What the input did between samples: `zoh` (a drive's log: position sampled when the

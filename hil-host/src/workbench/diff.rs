@@ -7,7 +7,7 @@
 //! measured input sample by sample (a lagging differentiator would itself look like a `delay`
 //! effect in the residual); and its cut-off is one number a user can reason about (keep it
 //! above the motion bandwidth and below where encoder quantisation noise dominates). The
-//! default cut-off is a tenth of the sample rate. Because a forward–backward filter rings at
+//! default cut-off is a tenth of the sample rate, at most 100 Hz. Because a forward–backward filter rings at
 //! the ends, [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
 
 /// Samples dropped at each end, in periods of the cut-off frequency.
@@ -95,9 +95,15 @@ pub fn differentiate(x: &[f64], dt: f64, fc: f64) -> Derivatives {
     }
 }
 
-/// Default cut-off: a tenth of the sample rate.
+/// Highest default cut-off (Hz). The encoder's noise in the acceleration grows as f_c^2.5
+/// while a joint's friction, load and transmission mode sit below it; above it, a fast
+/// record's quantisation error (under a count of motion per sample, correlated with the
+/// motion) would pass as a structured residual. It is also the EMPS authors' band.
+pub const MAX_DEFAULT_CUTOFF_HZ: f64 = 100.0;
+
+/// Default cut-off: a tenth of the sample rate, at most [`MAX_DEFAULT_CUTOFF_HZ`].
 pub fn default_cutoff(dt: f64) -> f64 {
-    0.1 / dt
+    (0.1 / dt).min(MAX_DEFAULT_CUTOFF_HZ)
 }
 
 /// Samples to drop at each end for a cut-off `fc` at period `dt`.
@@ -108,6 +114,13 @@ pub fn edge_samples(dt: f64, fc: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn default_cutoff_is_a_tenth_of_the_rate_up_to_100_hz() {
+        assert_eq!(default_cutoff(1.0 / 250.0), 25.0);
+        assert_eq!(default_cutoff(1e-3), 100.0);
+        assert_eq!(default_cutoff(1.0 / 4000.0), 100.0);
+    }
 
     #[test]
     fn differentiates_a_sine_without_lag() {

@@ -129,7 +129,7 @@ impl Prepared {
         self.noise_floor.hypot(self.encoder_floor(inertia))
     }
 
-    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate).
+    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate, at most 100 Hz).
     pub fn new(rec: &Recording, cutoff_hz: Option<f64>) -> Self {
         let fc = cutoff_hz.unwrap_or_else(|| diff::default_cutoff(rec.dt));
         let d = diff::differentiate(&rec.output, rec.dt, fc);
