@@ -174,9 +174,9 @@ impl Intersample {
 
     /// [`Intersample::apply`] followed by the zero-phase low-pass at `fc` (Hz; 0 = none) of a
     /// record sampled at `fs`: the input as the equation error sees it. When the low-pass
-    /// leaves nothing above a quarter of the sample rate (a cut-off up to a tenth of the sample rate, the
-    /// default), the two commute and the short kernel does the mapping after the filter, at
-    /// a sixth of the cost of the full one.
+    /// leaves nothing above a quarter of the sample rate (a cut-off up to a tenth of it, as
+    /// by default), the two commute and the short kernel does the mapping after the filter,
+    /// at a sixth of the cost of the full one.
     pub fn band_limited(self, u: &[f64], fc: f64, fs: f64) -> Vec<f64> {
         if !(fc > 0.0 && fs > 0.0) {
             return self.apply(u);
