@@ -58,6 +58,14 @@ fn verdict_line(stdout: &str) -> &str {
         .unwrap_or("")
 }
 
+/// Asserts the exit code of `o` and returns its stdout and report verdict line.
+fn exited(o: &Output, code: i32) -> (String, String) {
+    assert_eq!(o.status.code(), Some(code), "{}", text(o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let v = verdict_line(&out).to_string();
+    (out, v)
+}
+
 // ---------------------------------------------------------------- defect 1: a faulted run
 
 /// A run whose card latched a fault exits non-zero; its report opens with the fault, when,
@@ -78,9 +86,7 @@ fn a_faulted_demo_exits_non_zero_and_withholds_its_figures() {
         .arg(&dir)
         .output()
         .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let v = verdict_line(&out);
+    let (out, v) = exited(&o, 1);
     assert!(
         v.starts_with("  FAULTED: the card latched SensorTimeout at 1.00"),
         "{v}"
@@ -141,9 +147,7 @@ fn a_faulted_run_exits_non_zero_and_says_which_fault() {
         ])
         .output()
         .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let v = verdict_line(&out);
+    let (out, v) = exited(&o, 1);
     assert!(
         v.starts_with("  FAULTED: the card latched ConfigRejected at "),
         "{v}"
@@ -173,10 +177,9 @@ fn a_realtime_run_whose_plant_stalls_reports_the_fault_and_the_stall() {
         ])
         .output()
         .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let (out, v) = exited(&o, 1);
     assert!(
-        verdict_line(&out).starts_with("  FAULTED: the card latched SensorTimeout"),
+        v.starts_with("  FAULTED: the card latched SensorTimeout"),
         "{out}"
     );
     assert!(
@@ -501,9 +504,7 @@ fn an_interrupted_run_exits_130_and_says_so() {
         &csv,
         Duration::from_millis(500),
     );
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert_eq!(o.status.code(), Some(130), "{}", text(&o));
-    let v = verdict_line(&out);
+    let (out, v) = exited(&o, 130);
     assert!(v.starts_with("  INTERRUPTED: stopped by Ctrl-C at "), "{v}");
     assert!(out.contains("figures withheld"), "{out}");
     let ran: u64 = v
@@ -555,10 +556,9 @@ fn run_die_after_trips_the_watchdog() {
         "--quiet",
     ];
     let o = hil().args(args).output().unwrap();
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let out = String::from_utf8_lossy(&o.stdout);
+    let (out, v) = exited(&o, 1);
     assert!(
-        verdict_line(&out).starts_with("  FAULTED: the card latched SupervisorWatchdog"),
+        v.starts_with("  FAULTED: the card latched SupervisorWatchdog"),
         "{out}"
     );
     let o = hil().args(args).arg("--json").output().unwrap();

@@ -2,7 +2,9 @@
 
 pub mod hidden;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use hil_host::workbench::data::{self, Columns, Recording};
 
 /// `../shared/data/real/<folder>` beside the repository, if it holds `probe`; otherwise a loud
 /// SKIPPING line and `None` (the real-data tests need the shared folder, which CI has and a
@@ -26,4 +28,25 @@ pub fn real_data(folder: &str, probe: &str) -> Option<PathBuf> {
         );
         None
     }
+}
+
+/// The HIL lab's identification record of `preset`, written into `dir` by `hil-host demo
+/// --scenario identify` and loaded as a user would (motor torque command in, motor encoder
+/// out).
+pub fn hil_identify_record(dir: &Path, preset: &str) -> Recording {
+    let out = dir.to_str().expect("a UTF-8 temporary directory");
+    hil_host::cli::run(<hil_host::cli::Cli as clap::Parser>::parse_from([
+        "hil-host",
+        "demo",
+        "--scenario",
+        "identify",
+        "--preset",
+        preset,
+        "--quiet",
+        "--out",
+        out,
+    ]))
+    .expect("identify run");
+    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
+    data::load(&dir.join(format!("demo-identify-{preset}.csv")), &cols).expect("HIL record")
 }

@@ -8,7 +8,6 @@
 
 use clap::Parser;
 use hil_host::cli::{run, Cli};
-use hil_host::workbench::data::{self, Columns};
 use hil_host::workbench::diagnose::{diagnose, Options};
 use hil_host::workbench::model::Model;
 use hil_host::workbench::refine;
@@ -19,22 +18,9 @@ use sim_plant::effects::EffectKind;
 fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
     let dir = std::env::temp_dir().join(format!("jointlab-wb-hil-{}", std::process::id()));
     let preset = "whoi-cable-30";
-    run(Cli::parse_from([
-        "hil-host",
-        "demo",
-        "--scenario",
-        "identify",
-        "--preset",
-        preset,
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]))
-    .unwrap();
-    let rec = dir.join(format!("demo-identify-{preset}.csv"));
     // The HIL recording loads as it is: motor torque command in, motor encoder out.
-    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
-    let p = Prepared::new(&data::load(&rec, &cols).unwrap(), None);
+    let p = Prepared::new(&jointlab_tests::hil_identify_record(&dir, preset), None);
+    let rec = dir.join(format!("demo-identify-{preset}.csv"));
     let mut model = Model::baseline();
     refine::refit_all(&mut model, &p).unwrap();
     let dg = diagnose(&model, &p, &Options::default());

@@ -16,7 +16,6 @@
 
 use std::time::Instant;
 
-use clap::Parser;
 use hil_host::workbench::data::{self, Columns, Recording};
 use hil_host::workbench::diagnose::{diagnose, Options};
 use hil_host::workbench::model::Model;
@@ -111,20 +110,7 @@ fn main() {
     }
     let dir = std::env::temp_dir().join(format!("jointlab-speed-{}", std::process::id()));
     let preset = "whoi-cable-30";
-    hil_host::cli::run(hil_host::cli::Cli::parse_from([
-        "hil-host",
-        "demo",
-        "--scenario",
-        "identify",
-        "--preset",
-        preset,
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap_or("."),
-    ]))
-    .expect("identify run");
-    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
-    let hil = data::load(&dir.join(format!("demo-identify-{preset}.csv")), &cols).expect("HIL");
+    let hil = jointlab_tests::hil_identify_record(&dir, preset);
     auto_time("--auto, HIL identify record", &hil, None, 10.0);
     std::fs::remove_dir_all(&dir).ok();
 }
