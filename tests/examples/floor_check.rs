@@ -1,9 +1,9 @@
 //! The workbench's noise-floor estimate against the referee's, on null trials of every truth
 //! (development probe): ratio quartiles, and the null baseline's RMS over each.
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
 use jointlab_tests::hidden::{self, Logging};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 
 fn main() {
     for t in hidden::truths() {
@@ -26,7 +26,7 @@ fn main() {
                 .collect();
             d2.sort_by(f64::total_cmp);
             let mad = d2[d2.len() / 2] * 1.4826 / 6f64.sqrt();
-            let gain = hil_host::workbench::diff::noise_gain(tr.cutoff, 1.0 / rec.dt);
+            let gain = jointlab_workbench::diff::noise_gain(tr.cutoff, 1.0 / rec.dt);
             let robust = (mad * gain).hypot(p.encoder_floor(m.inertia.value));
             let true_u = {
                 let n = &tr.est.input_noise;

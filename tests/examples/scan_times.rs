@@ -1,12 +1,12 @@
 //! Time each effect's shape scan in `diagnose` on a 12 k-sample record (development probe).
 use std::time::Instant;
 
-use hil_host::workbench::diagnose::scan_shape;
-use hil_host::workbench::fit::{self, gram, gram_inverse};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::{self, Prepared};
 use jointlab_tests::hidden::long_record;
+use jointlab_workbench::diagnose::scan_shape;
+use jointlab_workbench::fit::{self, gram, gram_inverse};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::{self, Prepared};
 use sim_plant::effects::{shape_grid, EffectKind};
 
 fn main() {
@@ -53,7 +53,7 @@ fn main() {
     println!("ripple refine grid {} shapes", refine.len());
     let _ = t0;
     let t0 = Instant::now();
-    let dg = hil_host::workbench::diagnose::diagnose(&m, &p, &Default::default());
+    let dg = jointlab_workbench::diagnose::diagnose(&m, &p, &Default::default());
     println!(
         "diagnose {:.1} ms: {}",
         1e3 * t0.elapsed().as_secs_f64(),

@@ -4,7 +4,7 @@ pub mod hidden;
 
 use std::path::{Path, PathBuf};
 
-use hil_host::workbench::data::{self, Columns, Recording};
+use jointlab_workbench::data::{self, Columns, Recording};
 
 /// `../shared/data/real/<folder>` beside the repository, if it holds `probe`; otherwise a loud
 /// SKIPPING line and `None` (the real-data tests need the shared folder, which CI has and a

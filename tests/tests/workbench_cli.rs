@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use hil_host::cli::{run, Cli};
-use hil_host::workbench::data::{self, Columns};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
+use jointlab_workbench::data::{self, Columns};
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("jointlab-wb-{}-{name}", std::process::id()));
@@ -339,7 +339,7 @@ fn fit_uses_a_load_side_position() {
             cols.load_output = Some("q_load_rad".into());
         }
         let p = Prepared::new(&data::load(&val, &cols).unwrap(), Some(t.cutoff));
-        let r = hil_host::workbench::residual::equation_error(m, &p).residual;
+        let r = jointlab_workbench::residual::equation_error(m, &p).residual;
         (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
     };
     let rw = val_rms(&with, true);

@@ -8,12 +8,12 @@
 
 use std::path::PathBuf;
 
-use hil_host::workbench::closed_loop::{self, Cascade};
-use hil_host::workbench::data::{self, Columns};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
+use jointlab_workbench::closed_loop::{self, Cascade};
+use jointlab_workbench::data::{self, Columns};
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 use sim_plant::effects::EffectKind;
 
 const GTAU: f64 = 35.150_651_882_485_47;

@@ -8,10 +8,10 @@
 
 use clap::Parser;
 use hil_host::cli::{run, Cli};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 use sim_plant::effects::EffectKind;
 
 #[test]

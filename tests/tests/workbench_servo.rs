@@ -13,12 +13,12 @@
 
 use std::path::{Path, PathBuf};
 
-use hil_host::workbench::data::{self, Columns};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::metrics;
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::{self, Prepared};
+use jointlab_workbench::data::{self, Columns};
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::metrics;
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::{self, Prepared};
 use sim_plant::effects::EffectKind;
 
 /// Pendulum mass (kg) and length (m), logged with every run.

@@ -6,13 +6,13 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use sim_plant::effects::{EffectKind, Intersample};
 
-use crate::workbench::data::{self, Columns, Resampled};
-use crate::workbench::diagnose::{self, Options};
-use crate::workbench::metrics;
-use crate::workbench::model::Model;
-use crate::workbench::refine::{self, AutoStep, FitReport, Score};
-use crate::workbench::report::{self, Chart, Series};
-use crate::workbench::residual::{self, Mode, Prepared};
+use jointlab_workbench::data::{self, Columns, Resampled};
+use jointlab_workbench::diagnose::{self, Options};
+use jointlab_workbench::metrics;
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine::{self, AutoStep, FitReport, Score};
+use jointlab_workbench::report::{self, Chart, Series};
+use jointlab_workbench::residual::{self, Mode, Prepared};
 
 /// Examples for `compare --help`.
 pub const COMPARE_EXAMPLES: &str = "Examples:
@@ -767,7 +767,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::workbench::refine::Score;
+    use jointlab_workbench::refine::Score;
 
     fn score(rms: f64) -> Score {
         Score {

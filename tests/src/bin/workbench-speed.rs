@@ -16,12 +16,12 @@
 
 use std::time::Instant;
 
-use hil_host::workbench::data::{self, Columns, Recording};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
 use jointlab_tests::hidden::long_record;
+use jointlab_workbench::data::{self, Columns, Recording};
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 
 /// User + system CPU seconds of this process so far, all threads.
 fn cpu_seconds() -> f64 {

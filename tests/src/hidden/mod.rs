@@ -26,11 +26,11 @@ pub mod truth;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use hil_host::workbench::data::{Columns, Recording};
-use hil_host::workbench::diagnose::{diagnose, Options};
-use hil_host::workbench::model::Model;
-use hil_host::workbench::refine;
-use hil_host::workbench::residual::Prepared;
+use jointlab_workbench::data::{Columns, Recording};
+use jointlab_workbench::diagnose::{diagnose, Options};
+use jointlab_workbench::model::Model;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_plant::effects::{EffectKind, Intersample, Shape};

@@ -53,7 +53,7 @@ pub fn candidate_columns_on(kind: EffectKind, t: &Trajectory, shape: &Shape) -> 
 
 /// Fingerprint columns of an effect *in the model*. As [`candidate_columns`], except that a
 /// delay acts on the measured input: once its τ is fitted (by a 1-D search, see
-/// [`crate::workbench::refine`]; its amplitude is never a free least-squares column, see
+/// [`crate::refine`]; its amplitude is never a free least-squares column, see
 /// [`design`]), the model's prediction is the input actually delayed, `û = u − (u − u(t − τ))`.
 pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f64>> {
     if kind == EffectKind::Delay {
@@ -471,8 +471,8 @@ pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::workbench::data::Recording;
-    use crate::workbench::diff;
+    use crate::data::Recording;
+    use crate::diff;
 
     /// The spread of white noise's energy through an AR(1) response h = rᵏ: Σₖ Rₖ² =
     /// (1 + r²)/(1 − r²)³; and a unit impulse passes `rows` independent samples.
@@ -495,7 +495,7 @@ mod tests {
     fn noise_gram_of_the_baseline() {
         let n = 4000;
         let sigma: f64 = 1e-4;
-        let uniform = crate::workbench::stats::tests_support::unit_uniform;
+        let uniform = crate::stats::tests_support::unit_uniform;
         let rec = Recording {
             path: "synthetic".into(),
             time: (0..n).map(|k| k as f64 * 1e-3).collect(),
@@ -506,7 +506,7 @@ mod tests {
             load_output: None,
             dt: 1e-3,
             units: ("N·m".into(), "rad".into()),
-            columns: crate::workbench::data::Columns::new("u", "q"),
+            columns: crate::data::Columns::new("u", "q"),
             resampled: None,
             recorded: None,
         };

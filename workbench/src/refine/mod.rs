@@ -344,9 +344,9 @@ pub fn fit_add(
 mod tests {
     use super::auto::{bic, choose};
     use super::*;
-    use crate::workbench::data::{Columns, Recording};
-    use crate::workbench::diagnose::{self, Diagnosis};
-    use crate::workbench::stats::tests_support::unit_uniform;
+    use crate::data::{Columns, Recording};
+    use crate::diagnose::{self, Diagnosis};
+    use crate::stats::tests_support::unit_uniform;
 
     /// A rigid joint (inertia [`J`], viscous 0.03 N·m·s/rad) on two sines, plus `extra`
     /// (position, velocity) → torque, with white torque noise of 3 mN·m rms, recorded through

@@ -402,7 +402,7 @@ mod tests {
         let sigma: f64 = 1e-4;
         let x: Vec<f64> = (0..20_000)
             .map(|i| {
-                let u = crate::workbench::stats::tests_support::unit_uniform(i as u64);
+                let u = crate::stats::tests_support::unit_uniform(i as u64);
                 (i as f64 * 2e-3).sin() * 2.0 + (u - 0.5) * 12f64.sqrt() * sigma
             })
             .collect();
@@ -428,7 +428,7 @@ mod tests {
             load_output: load,
             dt,
             units: ("N·m".into(), "rad".into()),
-            columns: crate::workbench::data::Columns::new("u_Nm", "q_rad"),
+            columns: crate::data::Columns::new("u_Nm", "q_rad"),
             resampled: None,
             recorded: None,
         };
@@ -466,7 +466,7 @@ mod tests {
                 };
                 let t = k as f64 * 5e-3 + jitter * wobble * 5e-3;
                 let clean = 0.8 * (k as f64 * 5e-3 * 2.0).sin();
-                let noise = crate::workbench::stats::tests_support::unit_uniform(k as u64) - 0.5;
+                let noise = crate::stats::tests_support::unit_uniform(k as u64) - 0.5;
                 let q = (clean / step).round() * step;
                 csv += &format!("{t},{},{q}\n", clean + 0.05 * noise);
             }
@@ -474,9 +474,8 @@ mod tests {
             std::fs::write(&path, csv).expect("write csv");
             path
         };
-        let cols = crate::workbench::data::Columns::new("u_V", "q_rad");
-        let load =
-            |path: std::path::PathBuf| crate::workbench::data::load(&path, &cols).expect("load");
+        let cols = crate::data::Columns::new("u_V", "q_rad");
+        let load = |path: std::path::PathBuf| crate::data::load(&path, &cols).expect("load");
         let uniform = load(write("uniform.csv", 0.0));
         let jittered = load(write("jittered.csv", 0.15));
         std::fs::remove_dir_all(&dir).ok();
