@@ -47,17 +47,17 @@ fn emps_diagnose_fit_and_validate() {
     refine::refit_all(&mut model, &p).unwrap();
     let d0 = diagnose(&model, &p, &opts);
     println!("{}", d0.to_text());
-    let friction = ["coulomb", "stribeck", "asymmetry"];
-    let add0 = d0
-        .verdict
-        .add
-        .clone()
-        .expect("baseline must be missing something");
+    let friction = [
+        EffectKind::Coulomb,
+        EffectKind::Stribeck,
+        EffectKind::Asymmetry,
+    ];
+    let add0 = d0.verdict.add.expect("baseline must be missing something");
     assert!(
-        friction.contains(&add0.as_str()),
+        friction.contains(&add0),
         "first verdict {add0} is not a friction effect"
     );
-    assert_eq!(add0, "coulomb");
+    assert_eq!(add0, EffectKind::Coulomb);
 
     // 2. + coulomb → the next verdict is friction/offset, and offset is significant
     let r1 = refine::fit_add(&mut model, &p, Some(EffectKind::Coulomb), None).unwrap();
@@ -67,13 +67,16 @@ fn emps_diagnose_fit_and_validate() {
     let add1 = d1
         .verdict
         .add
-        .clone()
         .expect("coulomb model still misses something");
     assert!(
-        ["offset", "asymmetry"].contains(&add1.as_str()),
+        [EffectKind::Offset, EffectKind::Asymmetry].contains(&add1),
         "second verdict {add1}"
     );
-    let off = d1.candidates.iter().find(|c| c.effect == "offset").unwrap();
+    let off = d1
+        .candidates
+        .iter()
+        .find(|c| c.effect == EffectKind::Offset)
+        .unwrap();
     assert!(
         off.significant && off.p_value < 1e-6,
         "offset p {}",

@@ -25,8 +25,8 @@ fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
     refine::refit_all(&mut model, &p).unwrap();
     let dg = diagnose(&model, &p, &Options::default());
     assert_eq!(
-        dg.verdict.add.as_deref(),
-        Some("coulomb"),
+        dg.verdict.add,
+        Some(sim_plant::effects::EffectKind::Coulomb),
         "{}",
         dg.to_text()
     );

@@ -81,9 +81,9 @@ fn every_torque_on_log_names_gravity_first() {
                 first.p_value,
                 d.verdict.ambiguous_with
             );
-            assert_eq!(first.effect, "gravity", "{name}");
+            assert_eq!(first.effect, EffectKind::Gravity, "{name}");
             assert!(first.p_value < 1e-9, "{name}: p {}", first.p_value);
-            assert_eq!(d.verdict.add.as_deref(), Some("gravity"), "{name}");
+            assert_eq!(d.verdict.add, Some(EffectKind::Gravity), "{name}");
             if trajectory == "up_and_down" {
                 assert!(
                     !d.verdict.ambiguous_with.is_empty() && d.verdict.experiment.is_some(),

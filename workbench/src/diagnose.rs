@@ -80,8 +80,8 @@ impl Default for Options {
 /// One candidate effect.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
-    /// Effect name.
-    pub effect: String,
+    /// The effect (serialised as its lowercase name).
+    pub effect: EffectKind,
     /// 1 = most likely missing.
     pub rank: usize,
     /// Wald F statistic at the best shape.
@@ -101,9 +101,6 @@ pub struct Candidate {
     /// Best shape.
     #[serde(skip)]
     pub shape: Shape,
-    /// Effect.
-    #[serde(skip)]
-    pub kind: Option<EffectKind>,
 }
 
 /// Baseline numbers.
@@ -131,9 +128,9 @@ pub struct Baseline {
 #[derive(Debug, Clone, Serialize)]
 pub struct Verdict {
     /// Effect to add, or null.
-    pub add: Option<String>,
+    pub add: Option<EffectKind>,
     /// Candidates that are hard to tell apart from it.
-    pub ambiguous_with: Vec<String>,
+    pub ambiguous_with: Vec<EffectKind>,
     /// Experiment that would separate them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub experiment: Option<String>,
@@ -531,7 +528,7 @@ fn prefer_parsimonious(
     let Some(top) = cands.first().filter(|c| c.significant).cloned() else {
         return;
     };
-    let zt = residual::candidate_columns(top.kind.expect("kind"), p, &top.shape);
+    let zt = residual::candidate_columns(top.effect, p, &top.shape);
     let ct = contribution(&zt, x0, g0i, e);
     let mut best: Option<usize> = None;
     for (i, c) in cands.iter().enumerate().skip(1) {
@@ -543,7 +540,7 @@ fn prefer_parsimonious(
         if top.err - c.err >= opts.min_err {
             continue;
         }
-        let zc = residual::candidate_columns(c.kind.expect("kind"), p, &c.shape);
+        let zc = residual::candidate_columns(c.effect, p, &c.shape);
         let cc = contribution(&zc, x0, g0i, e);
         if corr(&ct, &cc).abs() >= opts.ambiguity_corr {
             best = Some(i);
@@ -667,7 +664,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
                 }
             }
             Candidate {
-                effect: s.kind.name().into(),
+                effect: s.kind,
                 rank: 0,
                 statistic: stat,
                 p_value: (p_raw * s.grid as f64).min(1.0),
@@ -677,7 +674,6 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
                 grid: s.grid,
                 significant: false,
                 shape: s.shape.clone(),
-                kind: Some(s.kind),
             }
         })
         .collect();
@@ -689,7 +685,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         let explained_rms = (c.err * rss / n).sqrt();
         // A shape at the edge of what the record resolves (a transmission mode above its
         // bandwidth) is ranked, but not a verdict: the record does not identify it.
-        let resolved = c.kind.is_none_or(|k| resolved(k, &t, &c.shape));
+        let resolved = resolved(c.effect, &t, &c.shape);
         c.significant = a < opts.alpha
             && c.err >= opts.min_err
             && explained_rms >= opts.min_rho * floor
@@ -705,7 +701,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     // Ranked last with no evidence (every effect not in the model is ranked). They stay out of
     // Holm's family: a test that cannot reject does not spend any of the error rate.
     cands.extend(nothing.iter().map(|s| Candidate {
-        effect: s.kind.name().into(),
+        effect: s.kind,
         rank: 0,
         statistic: 0.0,
         p_value: 1.0,
@@ -715,7 +711,6 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         grid: s.grid,
         significant: false,
         shape: s.shape.clone(),
-        kind: Some(s.kind),
     }));
     // Ranked by ERR (the no-evidence candidates last). A compliance mode at a shape the record
     // does not resolve (never a verdict) that would outrank the verdict keeps that place only
@@ -723,13 +718,13 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     // the motion form's ERR.
     let verdict_err = cands
         .iter()
-        .filter(|c| c.significant && c.kind.is_none_or(|k| resolved(k, &t, &c.shape)))
+        .filter(|c| c.significant && resolved(c.effect, &t, &c.shape))
         .map(|c| c.err)
         .reduce(f64::max);
     let mut rank_err: Vec<f64> = cands.iter().map(|c| c.err).collect();
     if let Some(v) = verdict_err {
         for (c, r) in cands.iter().zip(rank_err.iter_mut()) {
-            let unresolved_mode = c.kind == Some(EffectKind::Compliance)
+            let unresolved_mode = c.effect == EffectKind::Compliance
                 && !resolved(EffectKind::Compliance, &t, &c.shape);
             if unresolved_mode && c.err >= v {
                 *r = motion_form_err(p, x0, &g0i, e, rss, inertia);
@@ -773,7 +768,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             text: "no significant missing effect".into(),
         },
         Some(w) => {
-            let wk = w.kind.expect("kind");
+            let wk = w.effect;
             let zw = residual::candidate_columns(wk, p, &w.shape);
             let cw = contribution(&zw, x0, &g0i, e);
             let mut amb = Vec::new();
@@ -785,10 +780,10 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
                 if c.err < opts.ambiguity_err_ratio * w.err {
                     continue;
                 }
-                let zc = residual::candidate_columns(c.kind.expect("kind"), p, &c.shape);
+                let zc = residual::candidate_columns(c.effect, p, &c.shape);
                 let cc = contribution(&zc, x0, &g0i, e);
                 if corr(&cw, &cc).abs() >= opts.ambiguity_corr {
-                    amb.push(c.kind.expect("kind"));
+                    amb.push(c.effect);
                 }
             }
             let experiment = amb.first().map(|&b| separating_experiment(wk, b));
@@ -808,23 +803,23 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
                 )
             };
             Verdict {
-                add: Some(w.effect.clone()),
-                ambiguous_with: amb.iter().map(|k| k.name().to_string()).collect(),
+                add: Some(w.effect),
+                ambiguous_with: amb,
                 experiment,
                 text,
             }
         }
     };
-    if let Some(note) = encoder_limited(&baseline, verdict.add.as_deref()) {
+    if let Some(note) = encoder_limited(&baseline, verdict.add) {
         notes.push(note);
     }
-    if let Some(note) = unexplained(&baseline, verdict.add.as_deref()) {
+    if let Some(note) = unexplained(&baseline, verdict.add) {
         notes.push(note);
     }
     if let Some(note) = intersample_note(model, p, opts, rss) {
         notes.push(note);
     }
-    if let Some(k) = verdict.add.as_deref().and_then(EffectKind::from_name) {
+    if let Some(k) = verdict.add {
         if let Some(why) = sim_plant::effects::identifiability(k, &t) {
             notes.push(format!("{}: {why}", k.name()));
         }
@@ -893,7 +888,7 @@ pub const AT_FLOOR: f64 = 1.2;
 /// undithered excitation it is structured enough for a filtered-motion or filtered-command
 /// fingerprint to fit it consistently across the record — on a rigid joint with a 2¹⁶-count
 /// encoder, two slow sines and a 40 Hz cut-off the diagnosis names compliance.
-fn encoder_limited(b: &Baseline, verdict: Option<&str>) -> Option<String> {
+fn encoder_limited(b: &Baseline, verdict: Option<EffectKind>) -> Option<String> {
     let effect = verdict?;
     let at_floor = b.rms <= AT_FLOOR * b.noise_floor_rms;
     (at_floor && b.encoder_noise_rms > b.input_noise_rms).then(|| {
@@ -917,7 +912,7 @@ pub const UNEXPLAINED: f64 = 1.5;
 /// logs in ../shared/data/real, after gravity and Coulomb, no candidate is significant while
 /// the residual is 3.2× its floor and not white: what is left has no fingerprint in the
 /// library (docs/design/workbench-notebook.md, *On a second real machine*).
-fn unexplained(b: &Baseline, verdict: Option<&str>) -> Option<String> {
+fn unexplained(b: &Baseline, verdict: Option<EffectKind>) -> Option<String> {
     let left = b.rms / b.noise_floor_rms;
     (verdict.is_none() && left > UNEXPLAINED).then(|| {
         format!(
@@ -1031,6 +1026,9 @@ mod tests {
         let white = unexplained(&baseline(2.0, 0.5), None).expect("2× the floor");
         assert!(!white.contains("not white"), "{white}");
         assert_eq!(unexplained(&baseline(1.1, 0.0), None), None);
-        assert_eq!(unexplained(&baseline(3.24, 0.0), Some("coulomb")), None);
+        assert_eq!(
+            unexplained(&baseline(3.24, 0.0), Some(EffectKind::Coulomb)),
+            None
+        );
     }
 }

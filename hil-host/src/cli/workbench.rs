@@ -595,7 +595,7 @@ fn fit_text(r: &FitReport) -> String {
     let mut s = String::new();
     s.push_str(&format!(
         "added: {}\n",
-        r.added.as_deref().unwrap_or("(nothing, refit only)")
+        r.added.map_or("(nothing, refit only)", |k| k.name())
     ));
     s.push_str(&format!(
         "{:<12} {:<14} {:>14}   {:>10}\n",
@@ -689,7 +689,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
          ranks what the model still lacks.",
         model_file.display()
     );
-    if r.added.as_deref() == Some("backlash") && !load_encoder {
+    if r.added == Some(EffectKind::Backlash) && !load_encoder {
         s.push_str(
             " From the motor encoder alone the load's path through the gap is inferred (a play \
              operator); a light motor that chatters against the load within one encoder count \
@@ -780,7 +780,7 @@ mod tests {
 
     fn report(est: (f64, f64), val: (f64, f64)) -> FitReport {
         FitReport {
-            added: Some("stribeck".into()),
+            added: Some(EffectKind::Stribeck),
             before: score(est.0),
             after: score(est.1),
             before_validation: Some(score(val.0)),
@@ -802,7 +802,7 @@ mod tests {
         );
         assert!(!n.contains("--load-output"), "{n}");
         let mut b = report((2.0, 1.8), (2.0, 1.8));
-        b.added = Some("backlash".into());
+        b.added = Some(EffectKind::Backlash);
         let n = fit_advice(&b, false, f).expect("above the floor");
         assert!(n.contains("--load-output"), "{n}");
         let n = fit_advice(&b, true, f).expect("above the floor");

@@ -341,6 +341,13 @@ macro_rules! registry {
             }
         }
 
+        /// The lowercase name (padding and alignment flags apply), as in JSON and the CLI.
+        impl std::fmt::Display for EffectKind {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.pad(self.name())
+            }
+        }
+
         /// The `[effects]` section of a model file: which effects are present, with their
         /// parameters. Absent = the effect is not in the model.
         #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -377,8 +377,8 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     refine::refit_all(&mut model, &pe).map_err(|e| format!("start model: {e}"))?;
     let opts = Options::default();
     let d = diagnose(&model, &pe, &opts);
-    out.top = d.candidates.first().map(|c| c.effect.clone());
-    out.verdict = d.verdict.add.clone();
+    out.top = d.candidates.first().map(|c| c.effect.name().to_string());
+    out.verdict = d.verdict.add.map(|k| k.name().to_string());
     out.floors = Some([d.baseline.rms, d.baseline.noise_floor_rms, t.floor_est]);
     let debug = std::env::var_os("HIDDEN_DEBUG").is_some();
     if debug {

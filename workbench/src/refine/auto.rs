@@ -94,13 +94,13 @@ pub fn auto_observed(
             // Significant candidates, and the best ripple even when not significant: a ripple
             // period between grid points explains little at the grid, and gravity (a ripple of
             // period 2π) takes its place; the swap pass then tries ripple for gravity.
-            let keep = c.significant
-                || (c.kind == Some(EffectKind::Ripple) && model.has(EffectKind::Gravity));
+            let keep =
+                c.significant || (c.effect == EffectKind::Ripple && model.has(EffectKind::Gravity));
             if keep && !seen.iter().any(|s| s.effect == c.effect) {
                 seen.push(c.clone());
             }
         }
-        let Some(name) = d.verdict.add.clone() else {
+        let Some(name) = d.verdict.add else {
             if steps.list.len() <= max_steps {
                 let probe = delay_probe(model, p, opts)?;
                 let val_before = steps.list.last().and_then(|s| s.validation);
@@ -163,7 +163,7 @@ pub fn auto_observed(
                 stop: format!("reached --max-steps {max_steps}"),
             });
         }
-        let Some((c, fitted)) = choose(model, p, &d, &name)? else {
+        let Some((c, fitted)) = choose(model, p, &d, name)? else {
             // Every leading candidate fits only with a parameter outside its physical range,
             // or leaves the model worse by BIC once refitted (the last diagnosis says which
             // was next): stop with the model as it is.
@@ -178,18 +178,15 @@ pub fn auto_observed(
         };
         // The step taken is refitted in full, from the candidate's grid shape: the
         // candidates were weighed with the model's other shapes as they were.
-        let fitted = match c.kind {
-            Some(k) => {
-                let mut m = model.clone();
-                m.add(k, c.shape.clone());
-                refit_all(&mut m, p)?;
-                if m.physical().is_ok() {
-                    m
-                } else {
-                    fitted
-                }
+        let fitted = {
+            let mut m = model.clone();
+            m.add(c.effect, c.shape.clone());
+            refit_all(&mut m, p)?;
+            if m.physical().is_ok() {
+                m
+            } else {
+                fitted
             }
-            None => fitted,
         };
         // With a validation record, a step must earn its place there too.
         let val = validation.map(|v| score(&fitted, v));
@@ -209,11 +206,11 @@ pub fn auto_observed(
         *model = fitted;
         steps.push(AutoStep {
             step: steps.list.len(),
-            added: Some(c.effect.clone()),
+            added: Some(c.effect.name().into()),
             replaced: None,
             score: score(model, p),
             validation: val,
-            chosen_over: (c.effect != name).then(|| name.clone()),
+            chosen_over: (c.effect != name).then(|| name.name().into()),
             p_value: c.significant.then_some(c.p_value),
             verdict: d.verdict.text.clone(),
         });
@@ -286,9 +283,9 @@ pub(super) fn choose(
     model: &Model,
     p: &Prepared,
     d: &Diagnosis,
-    verdict: &str,
+    verdict: EffectKind,
 ) -> Result<Option<(diagnose::Candidate, Model)>, fit::FitError> {
-    let spent = |c: &diagnose::Candidate| c.kind.map_or(usize::MAX, |k| spent_params(k, c.df));
+    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
     let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
         return Err(fit::FitError::NonFinite);
     };
@@ -304,19 +301,14 @@ pub(super) fn choose(
     // and does not compete here either.
     let traj = p.trajectory();
     let close = |c: &diagnose::Candidate| {
-        c.err >= CLOSE_ERR * top.err
-            && c.kind
-                .is_some_and(|k| sim_plant::effects::resolved(k, &traj, &c.shape))
+        c.err >= CLOSE_ERR * top.err && sim_plant::effects::resolved(c.effect, &traj, &c.shape)
     };
     let mut pool: Vec<&diagnose::Candidate> = vec![top];
     pool.extend(
         d.candidates
             .iter()
             .filter(|c| {
-                c.kind.is_some()
-                    && (c.significant || close(c))
-                    && c.effect != verdict
-                    && spent(c) <= spent(top)
+                (c.significant || close(c)) && c.effect != verdict && spent(c) <= spent(top)
             })
             .take(2),
     );
@@ -327,7 +319,7 @@ pub(super) fn choose(
     let first_new = model.effects.len();
     let refits = each_on_a_thread(&pool, |c| {
         let mut m = model.clone();
-        m.add(c.kind?, c.shape.clone());
+        m.add(c.effect, c.shape.clone());
         if !coherent(&m) {
             return None;
         }
@@ -442,7 +434,7 @@ fn swap_pass(
             trials.push((base.clone(), None, old_kind.name().into()));
             let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
                 .iter()
-                .filter_map(|c| c.kind.map(|k| (c, k)))
+                .map(|c| (c, c.effect))
                 .filter(|(_, k)| !model.has(*k) && !taken_out.contains(k))
                 .collect();
             for (a, ka) in &fresh {
@@ -452,7 +444,7 @@ fn swap_pass(
                 }
                 let mut m = base.clone();
                 m.add(*ka, a.shape.clone());
-                trials.push((m, Some(a.effect.clone()), old_kind.name().into()));
+                trials.push((m, Some(a.effect.name().into()), old_kind.name().into()));
                 for (b, kb) in &fresh {
                     if kb <= ka || !b.significant || sa + spent_params(*kb, b.df) > old_spent {
                         continue;

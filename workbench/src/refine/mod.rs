@@ -98,7 +98,7 @@ pub struct ParamRow {
 #[derive(Debug, Clone, Serialize)]
 pub struct FitReport {
     /// Effect added (None = refit only).
-    pub added: Option<String>,
+    pub added: Option<EffectKind>,
     /// Before, estimation data.
     pub before: Score,
     /// After, estimation data.
@@ -331,7 +331,7 @@ pub fn fit_add(
     }
     refit_all(model, p)?;
     Ok(FitReport {
-        added: kind.map(|k| k.name().to_string()),
+        added: kind,
         before,
         after: score(model, p),
         before_validation,
@@ -431,14 +431,14 @@ mod tests {
 
     /// The diagnosis of `p` against the baseline, with `effect` forced to be the verdict (as
     /// if its grid-shape test had come out significant).
-    fn forced_verdict(p: &Prepared, effect: &str) -> Diagnosis {
+    fn forced_verdict(p: &Prepared, effect: EffectKind) -> Diagnosis {
         let mut d = diagnose::diagnose(&Model::baseline(), p, &diagnose::Options::default());
         for c in &mut d.candidates {
             if c.effect == effect {
                 c.significant = true;
             }
         }
-        d.verdict.add = Some(effect.to_string());
+        d.verdict.add = Some(effect);
         d
     }
 
@@ -456,8 +456,8 @@ mod tests {
         let mut m0 = baseline.clone();
         let rigid = synthetic(|_, _| 0.0, FINE);
         refit_all(&mut m0, &rigid).expect("fit");
-        let d = forced_verdict(&rigid, "offset");
-        let picked = choose(&m0, &rigid, &d, "offset").expect("choose");
+        let d = forced_verdict(&rigid, EffectKind::Offset);
+        let picked = choose(&m0, &rigid, &d, EffectKind::Offset).expect("choose");
         assert!(
             picked.is_none(),
             "took {:?} on a joint without an offset",
@@ -467,11 +467,11 @@ mod tests {
         let mut m1 = baseline;
         let offset = synthetic(|_, _| 0.01, FINE);
         refit_all(&mut m1, &offset).expect("fit");
-        let d = forced_verdict(&offset, "offset");
-        let (c, fitted) = choose(&m1, &offset, &d, "offset")
+        let d = forced_verdict(&offset, EffectKind::Offset);
+        let (c, fitted) = choose(&m1, &offset, &d, EffectKind::Offset)
             .expect("choose")
             .expect("the offset in the data was not taken");
-        assert_eq!(c.effect, "offset");
+        assert_eq!(c.effect, EffectKind::Offset);
         assert!(bic(&fitted, &offset) < bic(&m1, &offset));
     }
 
@@ -494,7 +494,7 @@ mod tests {
             assert!(
                 d.notes
                     .iter()
-                    .any(|n| n.starts_with(add.as_str()) && n.contains("quantisation")),
+                    .any(|n| n.starts_with(add.name()) && n.contains("quantisation")),
                 "verdict {add} without the encoder warning: {:?}",
                 d.notes
             );
