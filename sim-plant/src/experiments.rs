@@ -148,7 +148,7 @@ pub fn fit_two_segments(points: &[(f64, f64)], sign: f64, threshold: f64) -> Two
         let rows = sel
             .iter()
             .map(|&(d, t)| ([1.0, t.min(tk), (t - tk).max(0.0)], d));
-        let Some(beta) = least_squares(rows.clone()) else {
+        let Some(beta) = crate::lstsq::solve_rows(rows.clone()) else {
             continue;
         };
         let sse: f64 = rows
@@ -175,24 +175,6 @@ pub fn fit_two_segments(points: &[(f64, f64)], sign: f64, threshold: f64) -> Two
             knee: f64::NAN,
         },
     }
-}
-
-/// Ordinary least squares with `P` regressors through the normal equations (LU with partial
-/// pivoting); `None` if they are singular or the solution is not finite.
-pub fn least_squares<const P: usize>(
-    rows: impl Iterator<Item = ([f64; P], f64)>,
-) -> Option<[f64; P]> {
-    let mut a = nalgebra::DMatrix::<f64>::zeros(P, P);
-    let mut b = nalgebra::DVector::<f64>::zeros(P);
-    for (x, y) in rows {
-        let x = nalgebra::DVector::from_column_slice(&x);
-        a += &x * x.transpose();
-        b += x * y;
-    }
-    let beta = a.lu().solve(&b)?;
-    let mut out = [0.0; P];
-    out.copy_from_slice(beta.as_slice());
-    out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
 /// Straight-line fit y = a + b·x; returns (a, b).

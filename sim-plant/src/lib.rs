@@ -44,11 +44,13 @@
 //!   sensors, true state;
 //! * [`presets`] — the thesis's transmissions from `presets/transmissions.toml`;
 //! * [`experiments`] — the thesis's stiffness and backdrive tests, simulated;
+//! * [`lstsq`] — the workspace's one linear least-squares solver;
 //! * [`param`], [`units`], [`fastmath`] — parameters with specs, unit spellings, sin/cos.
 
 pub mod effects;
 pub mod experiments;
 pub mod fastmath;
+pub mod lstsq;
 pub mod model;
 pub mod param;
 pub mod plant;

@@ -81,49 +81,10 @@ pub enum FitError {
     NonFinite,
 }
 
-/// Gram matrix `XᵀX` of column-major data.
-pub fn gram(cols: &[Vec<f64>]) -> DMatrix<f64> {
-    let p = cols.len();
-    let mut g = DMatrix::zeros(p, p);
-    for i in 0..p {
-        for j in 0..=i {
-            let s: f64 = cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum();
-            g[(i, j)] = s;
-            g[(j, i)] = s;
-        }
-    }
-    g
-}
-
-/// `1/√g_ii` (0 where the diagonal is not positive): the column scaling that puts a Gram
-/// matrix's diagonal at 1.
-fn inverse_sqrt_diagonal(g: &DMatrix<f64>) -> Vec<f64> {
-    (0..g.nrows())
-        .map(|i| {
-            if g[(i, i)] > 0.0 {
-                1.0 / g[(i, i)].sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
-/// Inverse of a Gram matrix through column scaling and an SVD pseudo-inverse, so nearly
-/// collinear or badly scaled columns (jerk next to a constant) do not blow up.
-pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
-    let p = g.nrows();
-    // nalgebra's SVD does not terminate on NaN/inf input.
-    if g.iter().any(|v| !v.is_finite()) {
-        return DMatrix::from_element(p, p, f64::NAN);
-    }
-    let d = inverse_sqrt_diagonal(g);
-    let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
-    let inv = gs
-        .pseudo_inverse(1e-12)
-        .unwrap_or_else(|_| DMatrix::zeros(p, p));
-    DMatrix::from_fn(p, p, |i, j| inv[(i, j)] * d[i] * d[j])
-}
+// The normal-equation pieces are sim-plant's (one solver for the workspace); the fits here
+// add the batch-means covariance and the noise compensation.
+use sim_plant::lstsq::inverse_sqrt_diagonal;
+pub use sim_plant::lstsq::{gram, gram_inverse};
 
 /// Batch-means sandwich covariance for regressors `cols` and residual `e`.
 pub fn batch_covariance(

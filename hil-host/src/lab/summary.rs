@@ -493,21 +493,8 @@ where
 
 /// LS fit τ = c·sign(ω) + B·ω; returns (B, c).
 pub fn fit_viscous_coulomb(w: &[f64], tau: &[f64]) -> (f64, f64) {
-    // normal equations for two regressors
-    let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for (&x, &y) in w.iter().zip(tau) {
-        let sg = x.signum();
-        a11 += x * x;
-        a12 += x * sg;
-        a22 += 1.0;
-        b1 += x * y;
-        b2 += sg * y;
-    }
-    let det = a11 * a22 - a12 * a12;
-    if det.abs() < 1e-300 {
-        return (0.0, 0.0);
-    }
-    ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det)
+    let rows = w.iter().zip(tau).map(|(&x, &y)| ([x, x.signum()], y));
+    sim_plant::lstsq::solve_rows(rows).map_or((0.0, 0.0), |[b, c]| (b, c))
 }
 
 #[cfg(test)]

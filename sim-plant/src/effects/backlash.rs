@@ -247,7 +247,7 @@ pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
         let s = if v == 0.0 { 0.0 } else { v.signum() };
         ([a, v, s, 1.0], traj.input[i])
     });
-    let x = crate::experiments::least_squares(rows)?;
+    let x = crate::lstsq::solve_rows(rows)?;
     let (j, b) = (x[0], x[1]);
     (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
 }

@@ -252,12 +252,8 @@ mod tests {
         let late = biquad2(&x[m..], num, f0, zeta, fs);
         let d: Vec<f64> = full[m..].iter().zip(&late).map(|(a, b)| a - b).collect();
         let f = free_response2(d.len(), f0, zeta, fs);
-        // 2×2 normal equations.
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let (g11, g12, g22) = (dot(&f[0], &f[0]), dot(&f[0], &f[1]), dot(&f[1], &f[1]));
-        let (b1, b2) = (dot(&f[0], &d), dot(&f[1], &d));
-        let det = g11 * g22 - g12 * g12;
-        let (c1, c2) = ((g22 * b1 - g12 * b2) / det, (g11 * b2 - g12 * b1) / det);
+        let c = crate::lstsq::solve(&f, &d).expect("two independent free responses");
+        let (c1, c2) = (c[0], c[1]);
         let worst = d
             .iter()
             .enumerate()

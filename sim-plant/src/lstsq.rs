@@ -1,0 +1,147 @@
+//! Linear least squares through the normal equations, the one solver every fit in the
+//! workspace uses (the workbench's regressions, the simulated thesis experiments, the
+//! backlash grid's rigid fit, the lab's friction summary).
+//!
+//! The Gram matrix is scaled to a unit diagonal before its SVD pseudo-inverse is taken, so
+//! badly scaled columns (a jerk next to a constant, metres next to newtons) and nearly
+//! collinear ones do not blow the solution up.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Relative singular-value tolerance of the scaled Gram matrix's pseudo-inverse.
+pub const RCOND: f64 = 1e-12;
+
+/// Gram matrix `XᵀX` of column-major data.
+pub fn gram(cols: &[Vec<f64>]) -> DMatrix<f64> {
+    let p = cols.len();
+    let mut g = DMatrix::zeros(p, p);
+    for i in 0..p {
+        for j in 0..=i {
+            let s: f64 = cols[i].iter().zip(&cols[j]).map(|(a, b)| a * b).sum();
+            g[(i, j)] = s;
+            g[(j, i)] = s;
+        }
+    }
+    g
+}
+
+/// `1/√g_ii` (0 where the diagonal is not positive): the column scaling that puts a Gram
+/// matrix's diagonal at 1.
+pub fn inverse_sqrt_diagonal(g: &DMatrix<f64>) -> Vec<f64> {
+    (0..g.nrows())
+        .map(|i| {
+            if g[(i, i)] > 0.0 {
+                1.0 / g[(i, i)].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// Inverse of a Gram matrix through column scaling and an SVD pseudo-inverse, so nearly
+/// collinear or badly scaled columns (jerk next to a constant) do not blow up. All NaN when
+/// `g` is not finite.
+pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
+    let p = g.nrows();
+    // nalgebra's SVD does not terminate on NaN/inf input.
+    if g.iter().any(|v| !v.is_finite()) {
+        return DMatrix::from_element(p, p, f64::NAN);
+    }
+    let d = inverse_sqrt_diagonal(g);
+    let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
+    let inv = gs
+        .pseudo_inverse(RCOND)
+        .unwrap_or_else(|_| DMatrix::zeros(p, p));
+    DMatrix::from_fn(p, p, |i, j| inv[(i, j)] * d[i] * d[j])
+}
+
+/// Whether the scaled Gram matrix has full rank: every column carries energy and none is a
+/// combination of the others (within [`RCOND`]). A fit that must identify every parameter
+/// (a slope whose inverse is a stiffness) asks this before it trusts the solution.
+pub fn full_rank(g: &DMatrix<f64>) -> bool {
+    let p = g.nrows();
+    if g.iter().any(|v| !v.is_finite()) {
+        return false;
+    }
+    let d = inverse_sqrt_diagonal(g);
+    if d.contains(&0.0) {
+        return false;
+    }
+    let gs = DMatrix::from_fn(p, p, |i, j| g[(i, j)] * d[i] * d[j]);
+    let sv = gs.singular_values();
+    let max = sv.max();
+    sv.iter().all(|&s| s > RCOND * max)
+}
+
+/// Ordinary least squares `y ≈ Σ θ_j·x_j` over rows `(x, y)` with `P` regressors; `None` if
+/// the regressors do not identify every parameter ([`full_rank`]) or the solution is not
+/// finite.
+pub fn solve_rows<const P: usize>(rows: impl Iterator<Item = ([f64; P], f64)>) -> Option<[f64; P]> {
+    let mut g = DMatrix::<f64>::zeros(P, P);
+    let mut b = DVector::<f64>::zeros(P);
+    for (x, y) in rows {
+        let x = DVector::from_column_slice(&x);
+        g += &x * x.transpose();
+        b += x * y;
+    }
+    if !full_rank(&g) {
+        return None;
+    }
+    let beta = gram_inverse(&g) * b;
+    let mut out = [0.0; P];
+    out.copy_from_slice(beta.as_slice());
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// Ordinary least squares `y ≈ Σ θ_j·cols[j]` (columns of equal length); `None` as
+/// [`solve_rows`].
+pub fn solve(cols: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
+    let g = gram(cols);
+    if !full_rank(&g) {
+        return None;
+    }
+    let xty = DVector::from_iterator(
+        cols.len(),
+        cols.iter()
+            .map(|c| c.iter().zip(y).map(|(a, b)| a * b).sum()),
+    );
+    let theta = gram_inverse(&g) * xty;
+    theta
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| theta.iter().copied().collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A known line and plane come back; a constant column next to a scaled copy of itself,
+    /// or an empty column, is refused rather than answered with an arbitrary split.
+    #[test]
+    fn recovers_exact_fits_and_refuses_rank_deficient_ones() {
+        let rows = (0..20).map(|i| {
+            let x = i as f64 * 0.1;
+            ([1.0, x, x * x * 1e3], 2.0 - 3.0 * x + 0.5 * x * x * 1e3)
+        });
+        let b = solve_rows(rows).expect("full rank");
+        for (got, want) in b.iter().zip([2.0, -3.0, 0.5]) {
+            assert!((got - want).abs() < 1e-9, "{b:?}");
+        }
+        let twins = (0..20).map(|i| ([1.0, 2.0], i as f64));
+        assert_eq!(solve_rows(twins), None);
+        let empty = (0..20).map(|i| ([i as f64, 0.0], i as f64));
+        assert_eq!(solve_rows(empty), None);
+
+        let x: Vec<f64> = (0..50).map(|i| (i as f64 * 0.3).sin()).collect();
+        let one = vec![1.0; 50];
+        let y: Vec<f64> = x.iter().map(|v| 4.0 * v - 1.0).collect();
+        let t = solve(&[x, one], &y).expect("full rank");
+        assert!(
+            (t[0] - 4.0).abs() < 1e-12 && (t[1] + 1.0).abs() < 1e-12,
+            "{t:?}"
+        );
+        assert_eq!(solve(&[vec![0.0; 50]], &y), None);
+    }
+}
