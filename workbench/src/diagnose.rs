@@ -43,8 +43,8 @@ use serde::Serialize;
 use sim_plant::effects::{compliance, resolved, shape_search, EffectKind, Shape, Trajectory};
 
 use super::fit::{self, gram, gram_inverse};
+use super::metrics::Score;
 use super::model::Model;
-use super::refine::Score;
 use super::residual::{self, Prepared};
 use super::stats;
 

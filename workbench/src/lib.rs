@@ -10,6 +10,9 @@
 //! → refine (add effect, LS + LM refit, ±1σ) → report (SVG/PNG plots, one HTML file)
 //! ```
 //!
+//! Dependency order (a module uses only those before it): `data`, `diff`, `stats`, `spectral`,
+//! `model` → `fit` → `residual`, `metrics` → `diagnose` → `refine` → `closed_loop`, `report`.
+//!
 //! Effect features come from `sim_plant::effects::fingerprint` only; nothing here knows what
 //! Coulomb friction looks like.
 

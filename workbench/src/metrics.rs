@@ -11,6 +11,41 @@ use serde::Serialize;
 use super::residual::Residual;
 use super::stats;
 
+/// Fit % and RMS of a model on one record.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Score {
+    /// Fit %.
+    pub fit_percent: f64,
+    /// RMS residual.
+    pub rms: f64,
+    /// ‖e‖/‖u‖ %.
+    pub relative_error_percent: f64,
+    /// The equation error's noise floor on this record at this model's inertia
+    /// ([`crate::residual::Prepared::equation_floor`]): an RMS near it leaves nothing for another effect to
+    /// explain.
+    pub noise_floor_rms: f64,
+}
+
+impl Score {
+    /// The score of a residual `r` against the floor `noise_floor_rms` — the one formula for
+    /// what `compare`, `diagnose`'s baseline, `fit` and `--auto` print for a model.
+    pub fn of(r: &Residual, noise_floor_rms: f64) -> Score {
+        let ss: f64 = r.residual.iter().map(|v| v * v).sum();
+        let uu: f64 = r.measured.iter().map(|v| v * v).sum();
+        Score {
+            fit_percent: fit_percent(&r.measured, &r.predicted),
+            rms: r.rms(),
+            relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
+            noise_floor_rms,
+        }
+    }
+
+    /// RMS over the noise floor (1 = nothing left but noise).
+    pub fn floor_ratio(&self) -> f64 {
+        self.rms / self.noise_floor_rms
+    }
+}
+
 /// RMS and mean of the residual in one bin.
 #[derive(Debug, Clone, Serialize)]
 pub struct Bin {

@@ -10,7 +10,9 @@ use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
 use super::super::model::Model;
 use super::super::residual::{self, Prepared};
-use super::{each_on_a_thread, refit_added, refit_all, score, Score};
+use rayon::prelude::*;
+
+use super::{refit_added, refit_all, score, Score};
 
 /// One step of `diagnose --auto`.
 #[derive(Debug, Clone, Serialize)]
@@ -314,17 +316,20 @@ pub(super) fn choose(
     );
     let current = bic(model, p);
     // Each candidate's full refit is independent of the others' (and deterministic), so they
-    // run on their own threads; the results are then taken in pool order, exactly as one
+    // run on the worker pool; the results are then taken in pool order, exactly as one
     // after the other.
     let first_new = model.effects.len();
-    let refits = each_on_a_thread(&pool, |c| {
-        let mut m = model.clone();
-        m.add(c.effect, c.shape.clone());
-        if !coherent(&m) {
-            return None;
-        }
-        Some(refit_added(&mut m, p, first_new).map(|()| m))
-    });
+    let refits: Vec<_> = pool
+        .par_iter()
+        .map(|c| {
+            let mut m = model.clone();
+            m.add(c.effect, c.shape.clone());
+            if !coherent(&m) {
+                return None;
+            }
+            Some(refit_added(&mut m, p, first_new).map(|()| m))
+        })
+        .collect();
     // The candidate that buys the most BIC per parameter it spends: greedy selection under
     // a parameter budget. A one-parameter offset that explains nearly what a two-parameter
     // asymmetry does goes first; the richer effect must then earn its second parameter at
@@ -460,12 +465,15 @@ fn swap_pass(
                 }
             }
         }
-        // Their full refits are independent and deterministic: each on its own thread, the
-        // results considered in the order above (the same choice as one after the other).
-        let refits = each_on_a_thread(&trials, |(m, _, _)| {
-            let mut m = m.clone();
-            refit_added(&mut m, p, first_new).map(|()| m)
-        });
+        // Their full refits are independent and deterministic: on the worker pool, the
+        // results collected in the order above (the same choice as one after the other).
+        let refits: Vec<_> = trials
+            .par_iter()
+            .map(|(m, _, _)| {
+                let mut m = m.clone();
+                refit_added(&mut m, p, first_new).map(|()| m)
+            })
+            .collect();
         for (refit, (_, added, replaced)) in refits.into_iter().zip(trials) {
             consider(refit?, added, replaced);
         }

@@ -32,46 +32,11 @@ use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
 
 use super::fit;
-use super::metrics;
+pub use super::metrics::Score;
 use super::model::Model;
 use super::residual::{self, Prepared};
 pub use search::Only;
 use search::{search_shapes, StickStart};
-
-/// Fit % and RMS of a model on one record.
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Score {
-    /// Fit %.
-    pub fit_percent: f64,
-    /// RMS residual.
-    pub rms: f64,
-    /// ‖e‖/‖u‖ %.
-    pub relative_error_percent: f64,
-    /// The equation error's noise floor on this record at this model's inertia
-    /// ([`Prepared::equation_floor`]): an RMS near it leaves nothing for another effect to
-    /// explain.
-    pub noise_floor_rms: f64,
-}
-
-impl Score {
-    /// The score of a residual `r` against the floor `noise_floor_rms` — the one formula for
-    /// what `compare`, `diagnose`'s baseline, `fit` and `--auto` print for a model.
-    pub fn of(r: &residual::Residual, noise_floor_rms: f64) -> Score {
-        let ss: f64 = r.residual.iter().map(|v| v * v).sum();
-        let uu: f64 = r.measured.iter().map(|v| v * v).sum();
-        Score {
-            fit_percent: metrics::fit_percent(&r.measured, &r.predicted),
-            rms: r.rms(),
-            relative_error_percent: 100.0 * (ss / uu.max(1e-300)).sqrt(),
-            noise_floor_rms,
-        }
-    }
-
-    /// RMS over the noise floor (1 = nothing left but noise).
-    pub fn floor_ratio(&self) -> f64 {
-        self.rms / self.noise_floor_rms
-    }
-}
 
 /// Equation-error score of a model on prepared data (no refit).
 pub fn score(model: &Model, p: &Prepared) -> Score {
@@ -204,27 +169,24 @@ fn refit_searching(model: &mut Model, p: &Prepared, only: Only) -> Result<(), fi
     }
 }
 
-/// The Stribeck refit from each of [`StickStart::all`], in start order (one thread each: the
-/// order, not which finishes first, decides ties in [`refit_all`]).
+/// The Stribeck refit from each of [`StickStart::all`], in start order (on the worker pool;
+/// rayon collects in order, so the order, not which finishes first, decides ties in
+/// [`refit_all`]).
 #[doc(hidden)]
 pub fn refit_each_start(
     model: &Model,
     p: &Prepared,
     only: Only,
 ) -> Vec<(Model, Result<(), fit::FitError>)> {
-    each_on_a_thread(&StickStart::all(p), |&start| {
-        let mut m = model.clone();
-        let r = refit_from(&mut m, p, start, only);
-        (m, r)
-    })
-}
-
-/// `f` of each item on the worker pool, the results in the items' order — the order, not
-/// which worker finishes first, decides whatever the caller picks among them, so a parallel
-/// run gives what a sequential one would.
-fn each_on_a_thread<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync + Send) -> Vec<R> {
     use rayon::prelude::*;
-    items.par_iter().map(f).collect()
+    StickStart::all(p)
+        .par_iter()
+        .map(|&start| {
+            let mut m = model.clone();
+            let r = refit_from(&mut m, p, start, only);
+            (m, r)
+        })
+        .collect()
 }
 
 /// [`refit_all`] from one start of the Stribeck searches.
