@@ -10,6 +10,7 @@
 
 use super::signal::smooth_sign;
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "direction-dependent friction (extra Coulomb/stiction/viscous in the \
@@ -20,6 +21,9 @@ pub const AMPLITUDES: &[&str] = &["coulomb_extra", "viscous_extra"];
 
 /// Admissible sign of the first amplitude: either.
 pub const SIGN: Option<f64> = None;
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits::PLAIN;
 
 crate::define_params! {
     /// Extra Coulomb level in the positive direction, τc⁺ − τc⁻ (N·m).

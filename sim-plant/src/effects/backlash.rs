@@ -24,6 +24,7 @@
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "backlash dead zone of width b in the transmission; flat zone of \
@@ -36,6 +37,9 @@ pub const AMPLITUDES: &[&str] = &["load_inertia"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { searched_shape: true, band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Total width of the dead zone (rad at the output).

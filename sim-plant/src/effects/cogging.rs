@@ -12,6 +12,7 @@
 
 use super::laws::PeriodicTorque;
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "motor cogging periodic in rotor angle (9 cycles/rev for the \
@@ -23,6 +24,9 @@ pub const AMPLITUDES: &[&str] = &["sin", "cos"];
 
 /// Admissible sign of the first amplitude: either.
 pub const SIGN: Option<f64> = None;
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { searched_shape: true, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Sine amplitude (N·m, output-referred).

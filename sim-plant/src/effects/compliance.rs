@@ -23,6 +23,7 @@
 
 use super::signal::{biquad2, free_response2, highpass2, log_space};
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// Stiffness used when backlash is present without a compliance effect (N·m/rad).
 pub const DEFAULT_STIFFNESS: f64 = 1.0e4;
@@ -38,6 +39,9 @@ pub const AMPLITUDES: &[&str] = &["inertia_ratio"];
 
 /// Admissible sign of the first amplitude: negative for a motor-side position sensor.
 pub const SIGN: Option<f64> = Some(-1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Stiffness beyond the knee, or of the whole spring without a knee (N·m/rad, output).

@@ -13,6 +13,7 @@
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "Coulomb friction R = τc·sign(v), sticks at rest; residual is a \
@@ -23,6 +24,9 @@ pub const AMPLITUDES: &[&str] = &["torque"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { dry_friction: true, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Coulomb friction level (N·m, output-referred), both directions.

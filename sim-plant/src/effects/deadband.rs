@@ -13,6 +13,7 @@
 
 use super::signal::positive_or;
 use super::{EffectLaws, Shape, Trajectory};
+use super::{FitTraits, SmoothShape};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "actuator deadband and torque-constant nonlinearity; residual tracks \
@@ -23,6 +24,17 @@ pub const AMPLITUDES: &[&str] = &["width", "nonlinearity"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    smooth_shape: Some(SmoothShape {
+        get: |s| s.deadband_width,
+        set: |s, v| s.deadband_width = v,
+    }),
+    band_limit: false,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Deadband half-width w (N·m, output-referred).

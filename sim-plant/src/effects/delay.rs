@@ -12,6 +12,7 @@
 
 use super::signal::{derivative, moving_average};
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "transport delay τ of the command; residual ≈ τ·du/dt (leads the \
@@ -22,6 +23,9 @@ pub const AMPLITUDES: &[&str] = &["delay"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Delay τ (s).

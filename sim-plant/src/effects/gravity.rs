@@ -6,6 +6,7 @@
 
 use super::laws::PeriodicTorque;
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "gravity on the output m·g·l·sin(q+φ); residual is a sinusoid of \
@@ -16,6 +17,9 @@ pub const AMPLITUDES: &[&str] = &["sin", "cos"];
 
 /// Admissible sign of the first amplitude: either.
 pub const SIGN: Option<f64> = None;
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits::PLAIN;
 
 crate::define_params! {
     /// Sine amplitude, m·g·l·cos φ (N·m).

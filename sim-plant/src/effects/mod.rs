@@ -17,8 +17,9 @@
 //! the motor or output node that the integrator sums — so the integrator needs no change.
 //!
 //! A new module provides: `DESCRIBE`, `AMPLITUDES` (names of its fingerprint columns'
-//! amplitudes), `SIGN` (admissible sign of the first), a `define_params!` table, and
-//! `install`, `fingerprint`, `shape_grid`.
+//! amplitudes), `SIGN` (admissible sign of the first), `FIT` (what the fitter needs to know
+//! about it, a [`FitTraits`]), a `define_params!` table, and `install`, `fingerprint`,
+//! `shape_grid`.
 //!
 //! ## Sign convention
 //! Every effect is written as a *resisting* torque `R` in the axis equation
@@ -286,6 +287,49 @@ impl Default for Shape {
     }
 }
 
+/// The shape parameter Levenberg–Marquardt may refine together with the amplitudes, for an
+/// effect whose fingerprint is smooth in it: how to read it from and write it to a [`Shape`].
+#[derive(Clone, Copy, Debug)]
+pub struct SmoothShape {
+    /// The parameter's value in `shape`.
+    pub get: fn(&Shape) -> f64,
+    /// Set it in `shape`.
+    pub set: fn(&mut Shape, f64),
+}
+
+/// What the fitter and the diagnosis need to know about an effect beyond its columns,
+/// declared by the effect's module (`FIT`) so that no `match` on the effect lives in the
+/// workbench.
+#[derive(Clone, Copy, Debug)]
+pub struct FitTraits {
+    /// The shape is searched per record (a period, a width, a step): it costs one parameter
+    /// in a model comparison on top of the amplitudes.
+    pub searched_shape: bool,
+    /// The smooth shape parameter the refit's LM refines, if any.
+    pub smooth_shape: Option<SmoothShape>,
+    /// The columns are built from unfiltered signals (a sign, a periodic function of the
+    /// position) and must go through the residual's low-pass; false for columns already built
+    /// from filtered signals or the instrument, and for constants.
+    pub band_limit: bool,
+    /// Part of the dry friction that holds a joint at rest (it joins the stick state).
+    pub dry_friction: bool,
+    /// Effects this one contains as a special case (a ripple of period 2π is gravity): a
+    /// swap between them is a nested comparison BIC can judge.
+    pub nests: &'static [EffectKind],
+}
+
+impl FitTraits {
+    /// An effect with a fixed shape, columns from unfiltered signals, not dry friction,
+    /// nesting nothing: the base the modules' `FIT` constants start from.
+    pub const PLAIN: FitTraits = FitTraits {
+        searched_shape: false,
+        smooth_shape: None,
+        band_limit: true,
+        dry_friction: false,
+        nests: &[],
+    };
+}
+
 /// Declares every effect once: enum variant ⇒ module. Generates [`EffectKind`], its name
 /// table, [`EffectSet`] and the dispatchers.
 macro_rules! registry {
@@ -338,6 +382,12 @@ macro_rules! registry {
             /// for the effect (usually errors-in-variables bias from noisy derivatives).
             pub fn admissible_sign(self) -> Option<f64> {
                 match self { $( EffectKind::$variant => $module::SIGN, )* }
+            }
+
+            /// What the fitter and the diagnosis need to know about the effect
+            /// ([`FitTraits`]).
+            pub fn fit_traits(self) -> &'static FitTraits {
+                match self { $( EffectKind::$variant => &$module::FIT, )* }
             }
         }
 
@@ -578,6 +628,43 @@ mod tests {
             k: EffectKind,
         }
         toml::from_str::<W>(&format!("k = {quoted}")).unwrap().k
+    }
+
+    /// What the workbench asks of every registered effect: a smooth shape is a searched shape
+    /// whose accessors round-trip and which its own grid varies (else LM would refine a
+    /// parameter the search never moved); an effect nests only others; fingerprints exist
+    /// for the shapes it searches.
+    #[test]
+    fn every_effect_declares_what_the_fitter_needs() {
+        let n = 400;
+        let dt = 1e-3;
+        let q: Vec<f64> = (0..n).map(|i| (2.0 * i as f64 * dt).sin()).collect();
+        let v: Vec<f64> = (0..n).map(|i| 2.0 * (2.0 * i as f64 * dt).cos()).collect();
+        let a: Vec<f64> = q.iter().map(|q| -4.0 * q).collect();
+        let u: Vec<f64> = a.iter().zip(&v).map(|(a, v)| 0.2 * a + 0.3 * v).collect();
+        let traj = Trajectory::unfiltered(dt, &u, &q, &v, &a);
+        let mut smooth = 0;
+        for k in EffectKind::ALL {
+            let f = k.fit_traits();
+            assert!(!f.nests.contains(&k), "{k} nests itself");
+            let grid = shape_grid(k, &traj);
+            if let Some(acc) = f.smooth_shape {
+                smooth += 1;
+                assert!(f.searched_shape, "{k}: a smooth shape is a searched one");
+                let mut s = Shape::default();
+                (acc.set)(&mut s, 0.123);
+                assert_eq!((acc.get)(&s), 0.123, "{k}");
+                let vals: Vec<f64> = grid.iter().map(|s| (acc.get)(s)).collect();
+                assert!(
+                    vals.iter().any(|x| *x != vals[0]),
+                    "{k}: its grid does not vary the smooth shape {vals:?}"
+                );
+            }
+            if f.searched_shape && k != EffectKind::Cogging {
+                assert!(grid.len() > 1, "{k}: a searched shape needs a grid");
+            }
+        }
+        assert!(smooth > 0);
     }
 
     #[test]

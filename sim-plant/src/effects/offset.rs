@@ -6,6 +6,7 @@
 //! Dynamics: `R = torque`. Fingerprint: `[1]`.
 
 use super::{AdditiveTorque, EffectLaws, Node, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "constant bias torque R = c (amplifier/D-A offset, constant load); \
@@ -16,6 +17,9 @@ pub const AMPLITUDES: &[&str] = &["torque"];
 
 /// Admissible sign of the first amplitude: either.
 pub const SIGN: Option<f64> = None;
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Constant resisting torque (N·m, output-referred; negative = an assisting bias).

@@ -13,6 +13,7 @@
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "quantisation of the command (D/A steps Δ); residual is a bounded \
@@ -23,6 +24,9 @@ pub const AMPLITUDES: &[&str] = &["gain"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { searched_shape: true, band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Quantiser step Δ (N·m, output-referred); 0 = none.

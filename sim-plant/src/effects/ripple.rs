@@ -15,6 +15,7 @@ use std::f64::consts::TAU;
 use super::laws::PeriodicTorque;
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
+use super::{EffectKind, FitTraits, SmoothShape};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "transmission ripple periodic in output angle (tooth/lobe/roller \
@@ -26,6 +27,17 @@ pub const AMPLITUDES: &[&str] = &["sin", "cos"];
 
 /// Admissible sign of the first amplitude: either.
 pub const SIGN: Option<f64> = None;
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    smooth_shape: Some(SmoothShape {
+        get: |s| s.ripple_period,
+        set: |s, v| s.ripple_period = v,
+    }),
+    nests: &[EffectKind::Gravity],
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Sine amplitude (N·m).

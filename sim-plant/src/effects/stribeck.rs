@@ -11,6 +11,7 @@
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
+use super::{FitTraits, SmoothShape};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "stiction above Coulomb with a Stribeck transition, \
@@ -24,6 +25,17 @@ pub const AMPLITUDES: &[&str] = &["excess", "transient", "hold"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    smooth_shape: Some(SmoothShape {
+        get: |s| s.stribeck_velocity,
+        set: |s, v| s.stribeck_velocity = v,
+    }),
+    dry_friction: true,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Stiction minus Coulomb, Δ = τs − τc (N·m), both directions.

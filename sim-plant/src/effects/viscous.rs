@@ -6,6 +6,7 @@
 //! speed).
 
 use super::{EffectLaws, Shape, Trajectory};
+use super::FitTraits;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "viscous friction R = B·v (grease/bearing shear); residual \
@@ -16,6 +17,9 @@ pub const AMPLITUDES: &[&str] = &["damping"];
 
 /// Admissible sign of the first amplitude: positive (the effect consumes input).
 pub const SIGN: Option<f64> = Some(1.0);
+
+/// What the fitter needs to know beyond the columns (see [`FitTraits`]).
+pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Viscous coefficient (N·m·s/rad, output-referred), both directions.

@@ -250,15 +250,7 @@ const PENALTY: f64 = 2.0;
 /// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
 /// Stribeck velocity, dead-zone width, backlash width, quantum).
 fn spent_params(kind: EffectKind, df: usize) -> usize {
-    df + match kind {
-        EffectKind::Ripple
-        | EffectKind::Stribeck
-        | EffectKind::Deadband
-        | EffectKind::Backlash
-        | EffectKind::Quantization
-        | EffectKind::Cogging => 1,
-        _ => 0,
-    }
+    df + usize::from(kind.fit_traits().searched_shape)
 }
 
 /// Fraction of the verdict's error reduction at which a candidate that is not significant at
@@ -387,7 +379,7 @@ pub(super) fn bic(m: &Model, p: &Prepared) -> f64 {
 /// Whether a fitted `new` effect contains `old` as a special case (a ripple of period 2π is
 /// gravity), so that replacing `old` by `new` is a nested comparison BIC can judge.
 fn nests(new: EffectKind, old: EffectKind) -> bool {
-    new == EffectKind::Ripple && old == EffectKind::Gravity
+    new.fit_traits().nests.contains(&old)
 }
 
 /// The closing swap pass of `--auto` (a move must not worsen the validation record, when

@@ -78,20 +78,12 @@ pub struct FitReport {
 
 /// Shape value that LM may refine, if the effect's fingerprint is smooth in it.
 fn smooth_shape(kind: EffectKind, s: &Shape) -> Option<f64> {
-    match kind {
-        EffectKind::Stribeck => Some(s.stribeck_velocity),
-        EffectKind::Ripple => Some(s.ripple_period),
-        EffectKind::Deadband => Some(s.deadband_width),
-        _ => None,
-    }
+    kind.fit_traits().smooth_shape.map(|a| (a.get)(s))
 }
 
 fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
-    match kind {
-        EffectKind::Stribeck => s.stribeck_velocity = v,
-        EffectKind::Ripple => s.ripple_period = v,
-        EffectKind::Deadband => s.deadband_width = v,
-        _ => {}
+    if let Some(a) = kind.fit_traits().smooth_shape {
+        (a.set)(s, v);
     }
 }
 

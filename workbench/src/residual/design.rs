@@ -18,16 +18,7 @@ use super::Prepared;
 /// motion) and constants are left as they are (filtering the instrument-based dead-zone
 /// columns again made them fit null records; filtering backlash cost it rank 1 in the bench).
 fn filtered(kind: EffectKind) -> bool {
-    !matches!(
-        kind,
-        EffectKind::Offset
-            | EffectKind::Viscous
-            | EffectKind::Compliance
-            | EffectKind::Delay
-            | EffectKind::Deadband
-            | EffectKind::Quantization
-            | EffectKind::Backlash
-    )
+    kind.fit_traits().band_limit
 }
 
 fn band_limit(kind: EffectKind, t: &Trajectory, mut z: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
@@ -159,7 +150,7 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
 /// Whether an effect is part of the dry friction that holds a joint at rest (Coulomb, and the
 /// Stribeck excess that raises the breakaway level).
 fn dry_friction(kind: EffectKind) -> bool {
-    matches!(kind, EffectKind::Coulomb | EffectKind::Stribeck)
+    kind.fit_traits().dry_friction
 }
 
 /// The stick state of a model with dry friction: a joint at rest is held by static friction,
