@@ -385,8 +385,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         ],
         &charts,
         a.png,
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     if a.json {
         println!(
             "{}",
@@ -577,24 +576,21 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             &m,
             &data::input_unit(&a.data.columns(true)),
         ));
-        report_path = Some(
-            report::write(
-                dir,
-                "diagnose --auto",
-                &[
-                    ("steps".into(), table.clone()),
-                    (
-                        "final diagnosis".into(),
-                        format!("stopped: {}\n{}", run.stop, run.last.to_text()),
-                    ),
-                    ("final model".into(), ptext),
-                    ("final metrics".into(), m.to_text()),
-                ],
-                &charts,
-                true,
-            )
-            .map_err(anyhow::Error::msg)?,
-        );
+        report_path = Some(report::write(
+            dir,
+            "diagnose --auto",
+            &[
+                ("steps".into(), table.clone()),
+                (
+                    "final diagnosis".into(),
+                    format!("stopped: {}\n{}", run.stop, run.last.to_text()),
+                ),
+                ("final model".into(), ptext),
+                ("final metrics".into(), m.to_text()),
+            ],
+            &charts,
+            true,
+        )?);
     }
     if a.json {
         println!(
