@@ -19,7 +19,8 @@
 //! * Data: hex byte pairs, uppercase on output; `.` separators between bytes are accepted.
 //!   Remote frames: `R` plus an optional DLC digit (`R` = DLC 0), as can-utils ≥ 2020 writes.
 //! * Rejected with the line number: CAN FD (`##`), DLC codes above 8 (`_X` suffix), bad
-//!   hex, IDs out of range, missing fields. An optional trailing `R`/`T` (direction, written
+//!   hex, IDs out of range, missing fields ([`read_log`]; [`read_log_skipping`], which
+//!   `replay` uses, skips and counts such lines instead, and refuses only a log with no frame). An optional trailing `R`/`T` (direction, written
 //!   by newer candump with `-x`) is accepted and ignored. Blank lines are skipped.
 //!
 //! Checked against can-utils 2020.11 in the `.ci/vm` guest: `candump -L` output parses into
@@ -353,6 +354,118 @@ pub fn read_log(path: &Path) -> Result<Vec<LogRecord>, CandumpError> {
         io: Some(e),
     })?;
     CandumpReader::new(io::BufReader::new(f)).collect()
+}
+
+/// A log read by [`read_log_skipping`]: its frames, and the lines that were not frames.
+#[derive(Debug)]
+pub struct SkippingLog {
+    /// The frames, in file order.
+    pub records: Vec<LogRecord>,
+    /// CAN FD lines (`##`), skipped: only classic CAN is decoded.
+    pub fd_lines: usize,
+    /// Other lines that do not parse, skipped, each with its line number and reason.
+    pub bad_lines: Vec<CandumpError>,
+}
+
+impl SkippingLog {
+    /// A one-line summary of what was skipped (`None` when nothing was), for stderr.
+    pub fn skipped_note(&self, file: &Path) -> Option<String> {
+        if self.fd_lines == 0 && self.bad_lines.is_empty() {
+            return None;
+        }
+        let mut s = format!(
+            "note: {}: skipped {} line(s): {} CAN FD (##), {} unparseable",
+            file.display(),
+            self.fd_lines + self.bad_lines.len(),
+            self.fd_lines,
+            self.bad_lines.len()
+        );
+        if let Some(e) = self.bad_lines.first() {
+            s.push_str(&format!("; the first: {e}"));
+        }
+        Some(s)
+    }
+}
+
+/// Why [`read_log_skipping`] has no frames to give.
+#[derive(Debug, thiserror::Error)]
+pub enum LogError {
+    /// The file could not be opened or read.
+    #[error("{file}: {source}")]
+    Read {
+        /// File.
+        file: String,
+        /// What failed (with the line, for a read error).
+        #[source]
+        source: CandumpError,
+    },
+    /// Not one frame in the file.
+    #[error(
+        "{file}: no CAN frame in the log ({lines} line(s): {fd} CAN FD (##), {bad} unparseable); \
+         expected candump -L lines `(SECONDS.MICROS) IFACE ID#DATA`{first}"
+    )]
+    NoFrames {
+        /// File.
+        file: String,
+        /// Lines in the file.
+        lines: usize,
+        /// CAN FD lines skipped.
+        fd: usize,
+        /// Other lines that did not parse.
+        bad: usize,
+        /// The first unparseable line's error, as `; the first: …` (empty if none).
+        first: String,
+    },
+}
+
+/// Reads a whole log file, skipping (and counting) CAN FD lines and lines that do not parse,
+/// so one odd line in a long capture does not lose the rest. A file with no frame at all is
+/// the error, as is a failure to open or read it.
+pub fn read_log_skipping(path: &Path) -> Result<SkippingLog, LogError> {
+    let file = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| LogError::Read {
+        file: file.clone(),
+        source: CandumpError {
+            line: 0,
+            message: format!("cannot open: {e}"),
+            text: None,
+            io: Some(e),
+        },
+    })?;
+    let mut log = SkippingLog {
+        records: Vec::new(),
+        fd_lines: 0,
+        bad_lines: Vec::new(),
+    };
+    let mut reader = CandumpReader::new(io::BufReader::new(f));
+    for r in reader.by_ref() {
+        match r {
+            Ok(rec) => log.records.push(rec),
+            Err(e) if e.io.is_some() => {
+                return Err(LogError::Read {
+                    file: file.clone(),
+                    source: e,
+                })
+            }
+            Err(e) if e.text.as_deref().is_some_and(|t| t.contains("##")) => log.fd_lines += 1,
+            Err(e) => log.bad_lines.push(e),
+        }
+    }
+    if log.records.is_empty() {
+        return Err(LogError::NoFrames {
+            file,
+            // The reader counted the end-of-file read as a line.
+            lines: reader.line_no.saturating_sub(1),
+            fd: log.fd_lines,
+            bad: log.bad_lines.len(),
+            first: log
+                .bad_lines
+                .first()
+                .map(|e| format!("; the first: {e}"))
+                .unwrap_or_default(),
+        });
+    }
+    Ok(log)
 }
 
 /// Writes candump `-L` lines.

@@ -44,6 +44,10 @@ pub fn inverse_sqrt_diagonal(g: &DMatrix<f64>) -> Vec<f64> {
 /// `g` is not finite.
 pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
     let p = g.nrows();
+    // No free parameter: nothing to invert (nalgebra's SVD panics on an empty matrix).
+    if p == 0 {
+        return DMatrix::zeros(0, 0);
+    }
     // nalgebra's SVD does not terminate on NaN/inf input.
     if g.iter().any(|v| !v.is_finite()) {
         return DMatrix::from_element(p, p, f64::NAN);
@@ -61,7 +65,7 @@ pub fn gram_inverse(g: &DMatrix<f64>) -> DMatrix<f64> {
 /// (a slope whose inverse is a stiffness) asks this before it trusts the solution.
 pub fn full_rank(g: &DMatrix<f64>) -> bool {
     let p = g.nrows();
-    if g.iter().any(|v| !v.is_finite()) {
+    if p == 0 || g.iter().any(|v| !v.is_finite()) {
         return false;
     }
     let d = inverse_sqrt_diagonal(g);

@@ -122,6 +122,16 @@ impl Param {
                 spec.name, self.value, spec.unit, spec.min, spec.max
             ));
         }
+        // The fitting bounds: a NaN bound compares false with everything, so it would pass
+        // every check below and be written back; a start outside the box has no fit to start.
+        for (key, bound) in [("min", self.min), ("max", self.max)] {
+            if bound.is_some_and(f64::is_nan) {
+                return Err(format!(
+                    "parameter `{}`: {key} is NaN; a bound must be a number",
+                    spec.name
+                ));
+            }
+        }
         if let (Some(lo), Some(hi)) = (self.min, self.max) {
             if lo > hi {
                 return Err(format!(
@@ -129,6 +139,18 @@ impl Param {
                     spec.name
                 ));
             }
+        }
+        if let Some(lo) = self.min.filter(|lo| self.value < *lo) {
+            return Err(format!(
+                "parameter `{}` = {} {} is below its min {lo}",
+                spec.name, self.value, spec.unit
+            ));
+        }
+        if let Some(hi) = self.max.filter(|hi| self.value > *hi) {
+            return Err(format!(
+                "parameter `{}` = {} {} is above its max {hi}",
+                spec.name, self.value, spec.unit
+            ));
         }
         Ok(())
     }

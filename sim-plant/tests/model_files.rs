@@ -109,6 +109,43 @@ fn an_impossible_value_names_line_and_column() {
     assert!(msg.contains("physical range"), "{msg}");
 }
 
+/// Fitting bounds that no fit could honour are refused where they are written: a NaN bound
+/// (it compares false with everything, so it passed every check and was written back), a
+/// min above the max, and a start value outside its own bounds.
+#[test]
+fn bad_bounds_name_line_column_and_parameter() {
+    for (table, want) in [
+        ("{ value = 1.3, free = true, min = nan }", "min is NaN"),
+        ("{ value = 1.3, free = true, max = nan }", "max is NaN"),
+        (
+            "{ value = 1.3, free = true, min = 2.0, max = 1.0 }",
+            "min 2 is above max 1",
+        ),
+        (
+            "{ value = 1.3, free = true, min = 1.5 }",
+            "is below its min 1.5",
+        ),
+        (
+            "{ value = 1.3, free = true, max = 1.0 }",
+            "is above its max 1",
+        ),
+    ] {
+        let text = GOOD.replace("{ value = 1.3, free = true }", table);
+        let (line, col, msg) = located(&text);
+        assert_eq!((line, col), (13, 10), "{table}: {msg}");
+        assert!(
+            msg.contains("`torque`") && msg.contains(want),
+            "{table}: {msg}"
+        );
+    }
+    // Inside its bounds (or on one) a start is fine.
+    let text = GOOD.replace(
+        "{ value = 1.3, free = true }",
+        "{ value = 1.3, free = true, min = 1.3, max = 2.0 }",
+    );
+    assert!(Model::from_toml_str(&text, "joint.toml").is_ok());
+}
+
 #[test]
 fn an_unknown_key_in_a_parameter_table_names_line_and_column() {
     let text = GOOD.replace(
@@ -157,7 +194,8 @@ proptest! {
     ) {
         let mut m = Model { name, ..Model::default() };
         let mut torque = if free { Param::free(tc) } else { Param::fixed(tc) };
-        torque.min = lo;
+        // A start below its own min is refused on reading; keep the bound under it.
+        torque.min = lo.map(|l| l.min(tc));
         m.effects.coulomb = Some(coulomb::Params { torque });
         m.effects.backlash = Some(backlash::Params { width: Param::fixed(width) });
         m.effects.ripple = Some(ripple::Params {

@@ -56,6 +56,45 @@ pub enum DataError {
         /// Value.
         value: f64,
     },
+    /// A value is finite in the file but out of scale once converted: not finite after its
+    /// unit factor, `--input-gain`, `--input-times` or `--load-gain` (an overflowing
+    /// product), or so large that the column's sum of squares — which every fit forms —
+    /// overflows double precision.
+    #[error(
+        "{file}:{line}: column `{column}`: {value:e} after {after} is out of range: {why} \
+         (a cell out of scale, or a wrong gain)"
+    )]
+    OutOfRange {
+        /// File.
+        file: PathBuf,
+        /// Line of the largest value.
+        line: u64,
+        /// Column.
+        column: String,
+        /// The value after scaling.
+        value: f64,
+        /// What scaled it (`its unit`, `--input-gain 1e308`, …).
+        after: String,
+        /// Not finite, or its square overflows.
+        why: &'static str,
+    },
+    /// A differentiated or filtered signal is out of range (see [`DataError::OutOfRange`]).
+    #[error(
+        "{file}: the {signal} at t = {time} s is {value:e}: {why} (the position or input \
+         jumps by an amount out of scale near there)"
+    )]
+    Derived {
+        /// File.
+        file: PathBuf,
+        /// Which signal (`velocity after differentiation`, …).
+        signal: &'static str,
+        /// Time of the largest value (s).
+        time: f64,
+        /// Its value.
+        value: f64,
+        /// Not finite, or its square overflows.
+        why: &'static str,
+    },
     /// The sample interval is not uniform (a gap, or a jump in the clock).
     #[error(
         "{file}:{line}: column `{column}`: the sample interval {step} s is far from the \
@@ -361,6 +400,20 @@ pub fn input_unit(cols: &Columns) -> String {
     }
 }
 
+/// Where a signal is out of range for a fit, if it is: the index of its first non-finite
+/// value, or of its largest value when its sum of squares overflows; with the reason.
+pub fn out_of_range(x: &[f64]) -> Option<(usize, &'static str)> {
+    if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+        return Some((k, "not finite"));
+    }
+    let energy: f64 = x.iter().map(|v| v * v).sum();
+    if energy.is_finite() {
+        return None;
+    }
+    let k = (0..x.len()).max_by(|&a, &b| x[a].abs().total_cmp(&x[b].abs()))?;
+    Some((k, "its square overflows double precision"))
+}
+
 /// Fewest rows a recording (or its `--from/--to` window) may hold: below it the
 /// differentiator's trimmed edges leave too little to fit.
 const MIN_ROWS: usize = 50;
@@ -413,6 +466,36 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         .load_output
         .as_deref()
         .map(|c| scale(3, unit_of(c).1 * cols.load_gain));
+    // Every cell is finite (`read_numeric`); what the scaling made of it is checked here.
+    let mut input_by = String::from("its unit");
+    if cols.input_gain != 1.0 {
+        input_by = format!("--input-gain {:?}", cols.input_gain);
+    }
+    if let Some(c) = &cols.input_times {
+        input_by.push_str(&format!(" and --input-times {c}"));
+    }
+    let scaled = [
+        (&cols.input, Some(&input), input_by),
+        (&cols.output, Some(&output), "its unit".to_string()),
+        (
+            cols.load_output.as_ref().unwrap_or(&cols.output),
+            load_out.as_ref(),
+            format!("--load-gain {:?}", cols.load_gain),
+        ),
+    ];
+    for (column, x, after) in scaled {
+        let Some(x) = x else { continue };
+        if let Some((k, why)) = out_of_range(x) {
+            return Err(DataError::OutOfRange {
+                file,
+                line: lines.get(k).copied().unwrap_or(0),
+                column: column.clone(),
+                value: x[k],
+                after,
+                why,
+            });
+        }
+    }
     // The window: time increases, so its rows are one contiguous run.
     let (time, input, output, load_out, lines) = match cols.window {
         Some((from, to)) => {

@@ -79,6 +79,29 @@ pub enum FitError {
     /// A regressor or the target holds NaN/inf.
     #[error("non-finite value in the regression data")]
     NonFinite,
+    /// The data are finite but the solution is not: a sum of squares or a product
+    /// overflowed (values near the largest `f64`).
+    #[error(
+        "the least-squares solution is not finite ({what}): the data's magnitudes overflow \
+         double precision in its sums of squares"
+    )]
+    NonFiniteResult {
+        /// Which output (estimates or residual sum of squares).
+        what: &'static str,
+    },
+    /// There is nothing to fit.
+    #[error("the model has no free parameter to fit (mark one `free = true`, or add an effect)")]
+    NothingFree,
+    /// The fitted model scores non-finite on a record.
+    #[error("the fitted model's {what} on {record} is {value}: the fit overflowed")]
+    NonFiniteScore {
+        /// Which score.
+        what: &'static str,
+        /// Which record (estimation or validation).
+        record: &'static str,
+        /// Its value.
+        value: f64,
+    },
 }
 
 // The normal-equation pieces are sim-plant's (one solver for the workspace); the fits here
@@ -229,7 +252,15 @@ fn solve_compensated(
             *r -= t * x;
         }
     }
-    let rss = residual.iter().map(|r| r * r).sum();
+    let rss: f64 = residual.iter().map(|r| r * r).sum();
+    if theta.iter().any(|t| !t.is_finite()) {
+        return Err(FitError::NonFiniteResult { what: "estimates" });
+    }
+    if !rss.is_finite() {
+        return Err(FitError::NonFiniteResult {
+            what: "residual sum of squares",
+        });
+    }
     let noise_rss = (theta.transpose() * &nm * &theta)[(0, 0)];
     let (cov, blocks) = batch_covariance(cols, &residual, &ginv);
     Ok(LsFit {

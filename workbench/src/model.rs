@@ -40,8 +40,13 @@ pub struct Param {
     pub value: f64,
     /// Fitted (true) or held fixed (false).
     pub free: bool,
-    /// 1σ from the last fit.
+    /// 1σ from the last fit (`None` for a parameter held at one of its bounds).
     pub sigma: Option<f64>,
+    /// Lower fitting bound (the file's `min`), if any: the fit holds the parameter there
+    /// rather than go below it.
+    pub min: Option<f64>,
+    /// Upper fitting bound (the file's `max`), if any.
+    pub max: Option<f64>,
 }
 
 impl Param {
@@ -52,7 +57,16 @@ impl Param {
             value,
             free: true,
             sigma: None,
+            min: None,
+            max: None,
         }
+    }
+
+    /// The bound the value sits on or beyond (`Some(bound)`), if it does.
+    pub fn bound_reached(&self) -> Option<f64> {
+        self.min
+            .filter(|lo| self.value <= *lo)
+            .or(self.max.filter(|hi| self.value >= *hi))
     }
 }
 
@@ -88,13 +102,76 @@ pub enum ModelError {
     #[error(transparent)]
     File(#[from] sim_plant::model::ModelError),
     /// It parses, but the workbench cannot fit it.
-    #[error("{file}: {message}")]
-    Unsupported {
+    #[error("{file}: {source}")]
+    Unfittable {
         /// File.
         file: String,
         /// What is wrong.
-        message: String,
+        #[source]
+        source: Unfittable,
     },
+    /// A fitted model that no model file can hold, so it was not written.
+    #[error("{file}: not written, the fitted model is not physical: {source}")]
+    NotPhysical {
+        /// File.
+        file: String,
+        /// What is wrong.
+        #[source]
+        source: Unphysical,
+    },
+}
+
+/// Why a simulator model cannot be the workbench's starting point.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Unfittable {
+    /// Nothing to fit against.
+    #[error("the rigid inertia N²·I1 + I_middle + I2 = {0} is not positive")]
+    Inertia(f64),
+    /// A bound on a parameter the fitter does not fit as itself; ignoring it silently would
+    /// let a fit leave it where the file forbids.
+    #[error(
+        "`{parameter}` has a min/max bound the fitter cannot honour: {why}. Bounds are \
+         honoured on effect amplitudes only; remove this one"
+    )]
+    Bound {
+        /// Dotted path (`motor.inertia`, `effects.stribeck.velocity`).
+        parameter: String,
+        /// What the fitter does with this parameter instead.
+        why: &'static str,
+    },
+}
+
+/// Why a fitted model is not physical (see [`Model::physical`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Unphysical {
+    /// Compliance's amplitude −J2/J1 fitted positive.
+    #[error(
+        "compliance {name} = {value:+.4e} is positive: it is −J2/J1 of a two-mass joint, so no \
+         plant has it (the column fitted a broadband correction, not a transmission mode)"
+    )]
+    PositiveCompliance {
+        /// Parameter.
+        name: String,
+        /// Its value.
+        value: f64,
+    },
+    /// Backlash and compliance fitted two different load inertias.
+    #[error(
+        "backlash's load inertia {name} = {backlash:.4e} and compliance's split J2 = \
+         {split:.4e} differ: the joint has one load, and a model file holds one J2"
+    )]
+    LoadInertia {
+        /// Backlash's parameter.
+        name: String,
+        /// Its value.
+        backlash: f64,
+        /// Compliance's J2.
+        split: f64,
+    },
+    /// A parameter outside its physical range, as the simulator's reader reports it
+    /// (naming the parameter).
+    #[error("{0}")]
+    Range(String),
 }
 
 impl Model {
@@ -158,9 +235,9 @@ impl Model {
     /// Load a sim-plant model file (any: a preset, a hand-written joint, a saved fit).
     pub fn load(path: &Path) -> Result<Self, ModelError> {
         let sim = sim_plant::Model::load(path)?;
-        Self::from_sim(&sim).map_err(|message| ModelError::Unsupported {
+        Self::from_sim(&sim).map_err(|source| ModelError::Unfittable {
             file: path.display().to_string(),
-            message,
+            source,
         })
     }
 
@@ -171,9 +248,9 @@ impl Model {
         let file = path.display().to_string();
         let text = self.to_sim().to_toml_string();
         self.check_written(&text, &file)
-            .map_err(|e| ModelError::Unsupported {
+            .map_err(|source| ModelError::NotPhysical {
                 file: file.clone(),
-                message: format!("not written, the fitted model is not physical: {e}"),
+                source,
             })?;
         std::fs::write(path, text)
             .map_err(|source| sim_plant::model::ModelError::Io { file, source })?;
@@ -183,18 +260,18 @@ impl Model {
     /// Whether the simulator accepts this model as it would be written (every parameter inside
     /// its physical range); the reason if not. `--auto` only keeps models that pass, so what it
     /// finds can always be saved.
-    pub fn physical(&self) -> Result<(), String> {
+    pub fn physical(&self) -> Result<(), Unphysical> {
         self.check_written(&self.to_sim().to_toml_string(), "fitted model")
     }
 
     /// [`Model::physical`] of this model's file text `text` (named `file` in the reason): the
     /// split check, then the text parsed back as a simulator model — the one place the
     /// parameters' physical ranges are checked.
-    fn check_written(&self, text: &str, file: &str) -> Result<(), String> {
+    fn check_written(&self, text: &str, file: &str) -> Result<(), Unphysical> {
         self.physical_split()?;
         sim_plant::Model::from_toml_str(text, file)
             .map(|_| ())
-            .map_err(|e| e.to_string())
+            .map_err(|e| Unphysical::Range(e.to_string()))
     }
 
     /// A compliance amplitude must be −J2/J1 < 0 for the file's two masses to exist: a
@@ -204,7 +281,7 @@ impl Model {
     /// Backlash and compliance both name the load's inertia J2 (the file's one
     /// `plant.output_inertia`): fitted apart they disagree, and the file would hold only one
     /// of them, so such a model is refused too.
-    pub fn physical_split(&self) -> Result<(), String> {
+    pub fn physical_split(&self) -> Result<(), Unphysical> {
         let first = |k: EffectKind| {
             self.effects
                 .iter()
@@ -213,20 +290,19 @@ impl Model {
         };
         let compliance = first(EffectKind::Compliance);
         if let Some(p) = compliance.filter(|p| p.value > 0.0) {
-            return Err(format!(
-                "compliance {} = {:+.4e} is positive: it is −J2/J1 of a two-mass joint, so no \
-                 plant has it (the column fitted a broadband correction, not a transmission mode)",
-                p.name, p.value
-            ));
+            return Err(Unphysical::PositiveCompliance {
+                name: p.name.clone(),
+                value: p.value,
+            });
         }
         if let (Some(c), Some(b)) = (compliance, first(EffectKind::Backlash)) {
             let j2 = load_inertia_of_split(self.inertia.value, c.value);
             if (j2 - b.value).abs() > 1e-9 * self.inertia.value.abs() {
-                return Err(format!(
-                    "backlash's load inertia {} = {:.4e} and compliance's split J2 = {j2:.4e} \
-                     differ: the joint has one load, and a model file holds one J2",
-                    b.name, b.value
-                ));
+                return Err(Unphysical::LoadInertia {
+                    name: b.name.clone(),
+                    backlash: b.value,
+                    split: j2,
+                });
             }
         }
         Ok(())
@@ -234,8 +310,10 @@ impl Model {
 
     /// The equation-error view of a simulator model.
     ///
-    /// Fails for a model whose rigid inertia is not positive (nothing to fit against).
-    pub fn from_sim(sim: &sim_plant::Model) -> Result<Self, String> {
+    /// Fails for a model whose rigid inertia is not positive (nothing to fit against), and
+    /// for a `min`/`max` bound on a parameter that is not an effect's amplitude (see
+    /// [`Unfittable::Bound`]).
+    pub fn from_sim(sim: &sim_plant::Model) -> Result<Self, Unfittable> {
         // A compliant plant (2- or 3-mass) is seen through its rigid limit: the springs are
         // effects (compliance, backlash) whose fingerprints stand for them; the 3-mass plant's
         // proximal stage has none and is kept from the template on writing.
@@ -245,10 +323,9 @@ impl Model {
             + sim.plant.output_inertia.value;
         let j_far = sim.plant.output_inertia.value;
         if !(j.is_finite() && j > 0.0) {
-            return Err(format!(
-                "the rigid inertia N²·I1 + I_middle + I2 = {j} is not positive"
-            ));
+            return Err(Unfittable::Inertia(j));
         }
+        refuse_bounds_not_fitted(sim)?;
         let mut model = Model {
             name: sim.name.clone(),
             inertia: Param {
@@ -258,6 +335,8 @@ impl Model {
                 // A fixed value is given, not estimated: the fit record's σ (of whatever
                 // value was fitted then) does not belong to it.
                 sigma: sim.fit.inertia_sigma.filter(|_| sim.motor.inertia.free),
+                min: None,
+                max: None,
             },
             effects: Vec::new(),
             template: Some(sim.clone()),
@@ -303,6 +382,9 @@ impl Model {
             }
             let mut entry = EffectEntry::new(kind, shape);
             for (i, p) in entry.params.iter_mut().enumerate() {
+                if let Some(q) = by_name(&p.name) {
+                    (p.min, p.max) = (q.min, q.max);
+                }
                 let (v, free) = match (kind, by_name(&p.name)) {
                     (_, Some(q)) => (q.value, q.free),
                     // Equation-error-only amplitudes keep what `EffectEntry::new` gave them.
@@ -340,7 +422,10 @@ impl Model {
             }
             for e in model.effects.iter_mut() {
                 if e.kind == EffectKind::Viscous {
-                    e.params[0].value += b;
+                    let q = &mut e.params[0];
+                    q.value += b;
+                    q.min = q.min.map(|m| m + b);
+                    q.max = q.max.map(|m| m + b);
                 }
             }
         }
@@ -372,20 +457,25 @@ impl Model {
         for e in &self.effects {
             sim.effects.insert_default(e.kind);
             let amp = |name: &str| e.params.iter().find(|p| p.name == name);
+            // The file's viscous term excludes the structural damping b (see `from_sim`).
+            let shift = if e.kind == EffectKind::Viscous {
+                b
+            } else {
+                0.0
+            };
             let sp = |p: &Param| {
-                if p.free {
-                    SimParam::free(p.value)
+                let mut v = if p.free {
+                    SimParam::free(p.value - shift)
                 } else {
-                    SimParam::fixed(p.value)
-                }
+                    SimParam::fixed(p.value - shift)
+                };
+                v.min = p.min.map(|m| m - shift);
+                v.max = p.max.map(|m| m - shift);
+                v
             };
             for (spec, q) in sim.effects.params_mut(e.kind) {
                 if let Some(p) = amp(spec.name) {
-                    let mut v = sp(p);
-                    if e.kind == EffectKind::Viscous {
-                        v.value -= b;
-                    }
-                    *q = v;
+                    *q = sp(p);
                     continue;
                 }
                 let shape = &e.shape;
@@ -494,6 +584,43 @@ impl EffectEntry {
     }
 }
 
+/// A `min`/`max` bound the fitter cannot honour, as [`Unfittable::Bound`]: bounds are kept on
+/// the effects' amplitudes, each fitted as itself by least squares; the inertia and the
+/// structural damping are fitted as sums of several file parameters, shapes are searched on
+/// grids, and the other parameters are not fitted at all.
+fn refuse_bounds_not_fitted(sim: &sim_plant::Model) -> Result<(), Unfittable> {
+    for (path, spec, p) in sim.parameters() {
+        if p.min.is_none() && p.max.is_none() {
+            continue;
+        }
+        let amplitude = sim.effects.kinds().iter().any(|k| {
+            path.strip_prefix("effects.")
+                .and_then(|r| r.strip_prefix(k.name()))
+                .and_then(|r| r.strip_prefix('.'))
+                .is_some_and(|name| k.param_names().contains(&name))
+        });
+        if amplitude {
+            continue;
+        }
+        let why = if path.starts_with("effects.") {
+            "it is a shape, searched on a grid, not fitted by least squares"
+        } else if matches!(
+            spec.name,
+            "inertia" | "middle_inertia" | "output_inertia" | "damping" | "output_damping"
+        ) {
+            "the fitter fits the rigid inertia N²·I1 + I_middle + I2 and the structural damping \
+             as one number each, not this part of them"
+        } else {
+            "the fitter does not fit it"
+        };
+        return Err(Unfittable::Bound {
+            parameter: path,
+            why,
+        });
+    }
+    Ok(())
+}
+
 /// The load inertia J2 of a rigid inertia `j` split by compliance's amplitude α = −J2/J1:
 /// J2 = J·|α|/(1 + |α|) (α < 0).
 fn load_inertia_of_split(j: f64, alpha: f64) -> f64 {
@@ -550,7 +677,10 @@ mod tests {
         m.effects[q].params[0].value = 0.9;
         assert_eq!(m.physical(), Ok(()));
         m.effects[q].params[0].value = 1.07;
-        let err = m.physical().expect_err("gain 1.07 is outside [0, 1]");
+        let err = m
+            .physical()
+            .expect_err("gain 1.07 is outside [0, 1]")
+            .to_string();
         assert!(err.contains("gain"), "{err}");
         let dir = std::env::temp_dir().join(format!("jointlab-phys-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -639,7 +769,7 @@ mod tests {
     fn a_split_no_file_can_hold_is_refused() {
         let mut m = compliant();
         m.effects[1].params[0].value = 0.5;
-        let e = m.physical().unwrap_err();
+        let e = m.physical().unwrap_err().to_string();
         assert!(e.contains("inertia_ratio") && e.contains("positive"), "{e}");
         let path = std::env::temp_dir().join(format!("jointlab-split-{}.toml", std::process::id()));
         assert!(m.save(&path).is_err() && !path.exists());
@@ -647,7 +777,7 @@ mod tests {
         assert!(m.physical().is_ok());
         m.add(EffectKind::Backlash, Shape::default());
         m.effects[2].params[0].value = 0.02;
-        let e = m.physical().unwrap_err();
+        let e = m.physical().unwrap_err().to_string();
         assert!(e.contains("load_inertia"), "{e}");
         m.effects[2].params[0].value = 0.01;
         assert!(m.physical().is_ok(), "{:?}", m.physical());

@@ -15,6 +15,27 @@ use plotters::prelude::*;
 use super::metrics::Metrics;
 use super::residual::Residual;
 
+/// Why a report or plot was not written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A file or directory could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The plotting library failed to draw a chart.
+    #[error("chart `{chart}`: {message}")]
+    Plot {
+        /// The chart's id.
+        chart: String,
+        /// The plotting library's message.
+        message: String,
+    },
+}
+
 /// A curve to draw.
 #[derive(Debug, Clone)]
 pub struct Series {
@@ -57,7 +78,18 @@ fn thin(points: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
     points.into_iter().step_by(step).collect()
 }
 
-fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, c: &Chart) -> Result<(), String>
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, c: &Chart) -> Result<(), ReportError>
+where
+    DB::ErrorType: 'static,
+{
+    draw_plot(root, c).map_err(|message| ReportError::Plot {
+        chart: c.id.clone(),
+        message,
+    })
+}
+
+/// [`draw`], with the plotting library's errors as text (its error type is the backend's).
+fn draw_plot<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, c: &Chart) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
@@ -134,7 +166,7 @@ where
 }
 
 /// Render a chart to an SVG string.
-pub fn svg(c: &Chart) -> Result<String, String> {
+pub fn svg(c: &Chart) -> Result<String, ReportError> {
     let mut s = String::new();
     {
         let root = SVGBackend::with_string(&mut s, (900, 380)).into_drawing_area();
@@ -144,7 +176,7 @@ pub fn svg(c: &Chart) -> Result<String, String> {
 }
 
 /// Render a chart to a PNG file.
-pub fn png(c: &Chart, path: &Path) -> Result<(), String> {
+pub fn png(c: &Chart, path: &Path) -> Result<(), ReportError> {
     let root = BitMapBackend::new(path, (900, 380)).into_drawing_area();
     draw(root, c)
 }
@@ -288,8 +320,12 @@ pub fn write(
     sections: &[(String, String)],
     charts: &[Chart],
     with_png: bool,
-) -> Result<PathBuf, String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+) -> Result<PathBuf, ReportError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ReportError::Io { path, source }
+    };
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut html = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>{t}</title><style>body{{font-family:sans-serif;max-width:1000px;margin:auto}}pre{{background:#f4f4f4;padding:8px;overflow-x:auto}}</style></head><body><h1>{t}</h1>\n",
         t = esc(title)
@@ -300,7 +336,7 @@ pub fn write(
     for c in charts {
         let s = svg(c)?;
         let p = dir.join(format!("{}.svg", c.id));
-        std::fs::write(&p, &s).map_err(|e| format!("{}: {e}", p.display()))?;
+        std::fs::write(&p, &s).map_err(io(&p))?;
         if with_png {
             png(c, &dir.join(format!("{}.png", c.id)))?;
         }
@@ -313,7 +349,7 @@ pub fn write(
     }
     html.push_str("</body></html>\n");
     let p = dir.join("report.html");
-    std::fs::write(&p, html).map_err(|e| format!("{}: {e}", p.display()))?;
+    std::fs::write(&p, html).map_err(io(&p))?;
     Ok(p)
 }
 

@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
 use crate::bus::{open_bus, BusSpec, CanBus, Impaired, InprocHub, LinkClock, LinkStats};
-use crate::candump::{read_log, LoggedFrame};
+use crate::candump::{read_log_skipping, LoggedFrame};
 use crate::lab::card_node::CardNode;
 use crate::lab::gains;
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
@@ -1041,7 +1041,11 @@ pub struct ReplayArgs {
 
 /// Decodes (or replays) a candump log.
 pub fn replay(a: ReplayArgs) -> Result<()> {
-    let recs = read_log(&a.log).map_err(|e| anyhow!("{}: {e}", a.log.display()))?;
+    let log = read_log_skipping(&a.log)?;
+    if let Some(note) = log.skipped_note(&a.log) {
+        eprintln!("{note}");
+    }
+    let recs = log.records;
     if let Some(spec) = &a.bus {
         let mut bus = open_bus(spec).map_err(|e| anyhow!("{e}"))?;
         let t0 = std::time::Instant::now();

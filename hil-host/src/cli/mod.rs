@@ -60,14 +60,33 @@ pub fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             // A run that did not end clean has printed its report; say how it ended and
-            // exit with its code (1, or 130 when interrupted). Anything else is an error: 2.
+            // exit with its code (1, or 130 when interrupted). Anything else is an error:
+            // see `exit_code`.
             if let Some(f) = e.downcast_ref::<crate::lab::report::RunFailed>() {
                 eprintln!("hil-host: the run ended {}", f.verdict.word());
                 return std::process::ExitCode::from(f.verdict.exit_code());
             }
             eprintln!("error: {}", error_text(&e));
-            std::process::ExitCode::from(2)
+            std::process::ExitCode::from(exit_code(&e))
         }
+    }
+}
+
+/// 1 for an error in what a file holds (a recording, a model file, a candump log, or a fit
+/// that cannot be made on them), 2 for everything else — a usage error, as clap's own exit
+/// code for a bad flag: a script can tell "fix the command" from "fix the data".
+fn exit_code(e: &anyhow::Error) -> u8 {
+    let data = e.chain().any(|c| {
+        c.is::<jointlab_workbench::data::DataError>()
+            || c.is::<jointlab_workbench::model::ModelError>()
+            || c.is::<jointlab_workbench::fit::FitError>()
+            || c.is::<sim_plant::model::ModelError>()
+            || c.is::<crate::candump::LogError>()
+    });
+    if data {
+        1
+    } else {
+        2
     }
 }
 

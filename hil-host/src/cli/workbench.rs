@@ -8,6 +8,7 @@ use sim_plant::effects::{EffectKind, Intersample};
 
 use jointlab_workbench::data::{self, Columns, Resampled};
 use jointlab_workbench::diagnose::{self, Options};
+use jointlab_workbench::fit::FitError;
 use jointlab_workbench::metrics;
 use jointlab_workbench::model::Model;
 use jointlab_workbench::refine::{self, AutoStep, FitReport, Score};
@@ -64,13 +65,13 @@ pub struct DataArgs {
     pub load_output: Option<String>,
     /// Gain from the load column to the output column's axis, e.g. the gear ratio N when the
     /// load encoder is at the joint's output and --output is the motor shaft.
-    #[arg(long, default_value_t = 1.0, requires = "load_output")]
+    #[arg(long, default_value_t = 1.0, requires = "load_output", value_parser = gain, allow_negative_numbers = true)]
     pub load_gain: f64,
     /// Time column.
     #[arg(long, default_value = "time_s")]
     pub time: String,
     /// Gain from the input column to force/torque (e.g. EMPS gtau = 35.15065188248547 N/V).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = gain, allow_negative_numbers = true)]
     pub input_gain: f64,
     /// A column the input is multiplied by, row by row (e.g. the measured supply voltage when
     /// --input is a PWM duty in −1…1: duty × volts is the applied voltage).
@@ -169,7 +170,7 @@ impl DataArgs {
                 );
             }
         }
-        Ok((Prepared::new(&rec, self.cutoff), rec.resampled))
+        Ok((Prepared::checked(&rec, self.cutoff)?, rec.resampled))
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
@@ -179,6 +180,18 @@ impl DataArgs {
         };
         if m.params().iter().any(|q| q.free) {
             refine::refit_all(&mut m, p).context("fitting the free parameters")?;
+        }
+        // A model that scores NaN would be diagnosed as "nothing missing" with exit 0.
+        let s = refine::score(&m, p);
+        for (what, value) in [("fit %", s.fit_percent), ("RMS", s.rms)] {
+            if !value.is_finite() {
+                return Err(anyhow::Error::new(FitError::NonFiniteScore {
+                    what,
+                    record: "estimation",
+                    value,
+                })
+                .context(self.file.display().to_string()));
+            }
         }
         Ok(m)
     }
@@ -206,6 +219,17 @@ fn finite(s: &str) -> Result<f64, String> {
         Ok(x)
     } else {
         Err(format!("{x} is not a finite time"))
+    }
+}
+
+/// A finite, nonzero number (`--input-gain`, `--load-gain`): a NaN or infinite gain would
+/// reach the fit as NaN, and a zero one erases the column.
+fn gain(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|e| format!("`{s}`: {e}"))?;
+    if x.is_finite() && x != 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("{x} must be a finite number other than 0"))
     }
 }
 
@@ -328,6 +352,16 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         );
     }
     let m = metrics::compute(&res, a.period);
+    for (what, value) in [("fit %", m.fit_percent), ("RMS", m.rms)] {
+        if !value.is_finite() {
+            return Err(anyhow::Error::new(FitError::NonFiniteScore {
+                what,
+                record: "estimation",
+                value,
+            })
+            .context(a.data.file.display().to_string()));
+        }
+    }
     let rec_units = if mode == Mode::Equation {
         data::input_unit(&a.data.columns(true))
     } else {
@@ -351,8 +385,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         ],
         &charts,
         a.png,
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     if a.json {
         println!(
             "{}",
@@ -543,24 +576,21 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             &m,
             &data::input_unit(&a.data.columns(true)),
         ));
-        report_path = Some(
-            report::write(
-                dir,
-                "diagnose --auto",
-                &[
-                    ("steps".into(), table.clone()),
-                    (
-                        "final diagnosis".into(),
-                        format!("stopped: {}\n{}", run.stop, run.last.to_text()),
-                    ),
-                    ("final model".into(), ptext),
-                    ("final metrics".into(), m.to_text()),
-                ],
-                &charts,
-                true,
-            )
-            .map_err(anyhow::Error::msg)?,
-        );
+        report_path = Some(report::write(
+            dir,
+            "diagnose --auto",
+            &[
+                ("steps".into(), table.clone()),
+                (
+                    "final diagnosis".into(),
+                    format!("stopped: {}\n{}", run.stop, run.last.to_text()),
+                ),
+                ("final model".into(), ptext),
+                ("final metrics".into(), m.to_text()),
+            ],
+            &charts,
+            true,
+        )?);
     }
     if a.json {
         println!(
@@ -756,6 +786,15 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
             print!("{g}");
         }
         print!("{}", fit_text(&r));
+        for q in model.params().iter().filter(|q| q.free) {
+            if let Some(b) = q.bound_reached().filter(|_| q.sigma.is_none()) {
+                println!(
+                    "note: {} is held at its bound {b:e} (the model file's min/max): the fit \
+                     would take it beyond, so it has no 1σ",
+                    q.name
+                );
+            }
+        }
         println!("model written to {}", a.save_model.display());
         if let Some(n) = fit_advice(&r, !p.load_position.is_empty(), &a.save_model) {
             print!("{n}");

@@ -283,13 +283,35 @@ pub fn fit_add(
         let shape = best_shape(model, p, k).unwrap_or_default();
         model.add(k, shape);
     }
+    if !model.params().iter().any(|q| q.free) {
+        return Err(fit::FitError::NothingFree);
+    }
     refit_all(model, p)?;
+    let after = score(model, p);
+    let after_validation = validation.map(|v| score(model, v));
+    // A fit that overflowed is not a result: no NaN fit % is printed, no model written.
+    for (record, s) in [
+        ("estimation", Some(after)),
+        ("validation", after_validation),
+    ] {
+        for (what, value) in s.map_or(Vec::new(), |s| {
+            vec![("fit %", s.fit_percent), ("RMS", s.rms)]
+        }) {
+            if !value.is_finite() {
+                return Err(fit::FitError::NonFiniteScore {
+                    what,
+                    record,
+                    value,
+                });
+            }
+        }
+    }
     Ok(FitReport {
         added: kind,
         before,
-        after: score(model, p),
+        after,
         before_validation,
-        after_validation: validation.map(|v| score(model, v)),
+        after_validation,
         params: param_rows(model),
     })
 }

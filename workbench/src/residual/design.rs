@@ -372,7 +372,57 @@ pub fn noise_energy_sd(h: &[f64], sigma2: f64, rows: usize) -> f64 {
 }
 
 /// Fit all free amplitudes by linear least squares; writes values and 1σ into the model.
+///
+/// A parameter with `min`/`max` bounds (from its model file) is kept inside them: when the
+/// unconstrained fit puts free parameters outside, the one furthest outside (relative to its
+/// 1σ) is held at its bound and the rest refitted, until none is outside — an active set that
+/// only grows, so at most one refit per bounded parameter. A parameter held at its bound stays
+/// free in the model, with no 1σ (the fit did not estimate it; see [`Param::bound_reached`]).
+///
+/// [`Param::bound_reached`]: crate::model::Param::bound_reached
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
+    let mut fit = refit_unbounded(model, p)?;
+    let mut held = Vec::new();
+    loop {
+        let params = model.params();
+        let outside = params
+            .iter()
+            .enumerate()
+            .filter(|(_, q)| q.free)
+            .filter_map(|(i, q)| {
+                let bound = q
+                    .min
+                    .filter(|lo| q.value < *lo)
+                    .or(q.max.filter(|hi| q.value > *hi))?;
+                let sigma = q.sigma.filter(|s| *s > 0.0).unwrap_or(1.0);
+                Some((i, bound, (q.value - bound).abs() / sigma))
+            })
+            .max_by(|a, b| a.2.total_cmp(&b.2));
+        let Some((i, bound, _)) = outside else { break };
+        let mut params = model.params_mut();
+        params[i].value = bound;
+        params[i].free = false;
+        held.push(i);
+        let refit = refit_unbounded(model, p);
+        if refit.is_err() {
+            // Leave the model as the caller gave it: free where it was free.
+            let mut params = model.params_mut();
+            for &j in &held {
+                params[j].free = true;
+            }
+        }
+        fit = refit?;
+    }
+    let mut params = model.params_mut();
+    for &i in &held {
+        params[i].free = true;
+        params[i].sigma = None;
+    }
+    Ok(fit)
+}
+
+/// [`refit`] without the bounds.
+fn refit_unbounded(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     let d = design(model, p);
     // The compensation belongs to parameter estimation only: the diagnosis's projections
     // (`diagnose`, `refine::best_shape`) test what a column adds, for which plain least squares

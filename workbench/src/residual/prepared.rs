@@ -5,7 +5,7 @@
 
 use sim_plant::effects::{Intersample, Trajectory};
 
-use super::super::data::Recording;
+use super::super::data::{DataError, Recording};
 use super::super::diff;
 use super::super::fit;
 
@@ -130,6 +130,34 @@ impl Prepared {
     }
 
     /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate, at most 100 Hz).
+    /// [`Prepared::new`], refusing a record whose differentiated or filtered signals are out
+    /// of range for a fit (not finite, or a sum of squares that overflows): finite cells can
+    /// still differentiate to infinity (a jump of 1e308 over one sample), and a fit on them
+    /// gives NaN where it should give an error naming where.
+    pub fn checked(rec: &Recording, cutoff_hz: Option<f64>) -> Result<Self, DataError> {
+        let p = Self::new(rec, cutoff_hz);
+        for (signal, x) in [
+            ("input after the intersample filter", &p.input),
+            ("position after smoothing", &p.position),
+            ("velocity after differentiation", &p.velocity),
+            ("acceleration after differentiation", &p.acceleration),
+            ("load position after smoothing", &p.load_position),
+        ] {
+            if let Some((k, why)) = super::super::data::out_of_range(x) {
+                return Err(DataError::Derived {
+                    file: rec.path.clone(),
+                    signal,
+                    time: p.time.get(k).copied().unwrap_or(f64::NAN),
+                    value: x[k],
+                    why,
+                });
+            }
+        }
+        Ok(p)
+    }
+
+    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate, at most 100 Hz).
+    /// Does not check the result's range: see [`Prepared::checked`].
     pub fn new(rec: &Recording, cutoff_hz: Option<f64>) -> Self {
         let fc = cutoff_hz.unwrap_or_else(|| diff::default_cutoff(rec.dt));
         let d = diff::differentiate(&rec.output, rec.dt, fc);
