@@ -8,7 +8,7 @@
 //! | position | [`Counts`] = `i64` | encoder counts after multi-turn unwrap (motor encoder for x1, output encoder for x2) |
 //! | position error | `i32` | counts; an `i64` difference is clamped to `i32` and [`Flags::INPUT_CLAMPED`] is raised |
 //! | velocity | [`Vel`] = `I28F4` | counts/s, 4 fractional bits: 1/16 count/s = 1.7·10⁻⁴ rad/s at 2304 cpr, the resolution of the thesis's Sensorimotor velocity (1.8·10⁻⁴ rad/s, notes §1); range ±1.3·10⁸ counts/s (±58 000 rev/s at 2304 cpr, ±128 rev/s at 2²⁰ cpr) |
-//! | torque | [`Torque`] = `i32` | [`TORQUE_LSB_NM`] = 0.1 mN·m by default (`units::Scale::torque_lsb_nm` can choose another LSB; the laws are LSB-agnostic). Motor-side for commands; a force-sensor value is output-side in the same LSB (gains carry the 1/N) |
+//! | torque | [`Torque`] = `i32` | the wire's motor-torque LSB ([`MOTOR_TORQUE_NM_PER_LSB`](crate::proto::scale::MOTOR_TORQUE_NM_PER_LSB) = 0.1 mN·m) by default (`units::Scale::torque_lsb_nm` can choose another LSB; the laws are LSB-agnostic). Motor-side for commands; a force-sensor value is output-side in the same LSB (gains carry the 1/N) |
 //! | torque command | [`TorqueCmd`] = `i16` | 0.1 mN·m motor side, ±3.2767 N·m (the thesis motor is ≤ 2 N·m) |
 //!
 //! # Why a mantissa/shift gain
@@ -26,12 +26,10 @@ use fixed::types::I28F4;
 pub type Counts = i64;
 /// Velocity in counts/s, Q28.4 (see module docs).
 pub type Vel = I28F4;
-/// Torque in [`TORQUE_LSB_NM`] units, internal width.
+/// Torque in motor-torque LSBs ([`MOTOR_TORQUE_NM_PER_LSB`](crate::proto::scale::MOTOR_TORQUE_NM_PER_LSB)), internal width.
 pub type Torque = i32;
 /// Final torque command sent to the power stage / actuator frame.
 pub type TorqueCmd = i16;
-/// Size of one torque LSB in N·m.
-pub const TORQUE_LSB_NM: f64 = 1.0e-4;
 /// Fractional bits of [`Vel`].
 pub const VEL_FRAC_BITS: u32 = 4;
 

@@ -20,7 +20,8 @@
 // `!(x >= 0.0)` is used on purpose: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
 
-use crate::fixed_math::{Alpha, Gain, Torque, GAIN_MAX_SHIFT, TORQUE_LSB_NM, VEL_FRAC_BITS};
+use crate::fixed_math::{Alpha, Gain, Torque, GAIN_MAX_SHIFT, VEL_FRAC_BITS};
+use crate::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 
 use crate::laws::{
     DamperConfig, Feedback, ForceConfig, ForceDamping, FrictionConfig, ImpCompConfig,
@@ -114,15 +115,16 @@ pub fn gain_from_f64(what: &'static str, v: f64) -> Result<Gain, UnitsError> {
         scaled *= 2.0;
         shift = shift.saturating_add(1);
     }
-    let m = round_f64(scaled);
+    let m = round_half_away(scaled);
     if m == 0.0 || ((m - scaled) / scaled).abs() > MAX_REL_ROUNDING {
         return Err(UnitsError::RoundsToZero { what, value: v });
     }
     Gain::from_parts(m as i32, shift).ok_or(UnitsError::Overflow { what, value: v })
 }
 
-/// Round half away from zero (core has no `f64::round` without std).
-fn round_f64(x: f64) -> f64 {
+/// Round half away from zero (core has no `f64::round` without std). Every SI → machine
+/// conversion of the crate rounds here, so the card and a supervisor round alike.
+pub(crate) fn round_half_away(x: f64) -> f64 {
     let t = x as i64 as f64; // trunc for |x| < 2⁶³
     let r = x - t;
     if r >= 0.5 {
@@ -140,7 +142,7 @@ pub fn torque_lsb(s: &Scale, what: &'static str, nm: f64) -> Result<Torque, Unit
     if !nm.is_finite() {
         return Err(UnitsError::NotFinite { what });
     }
-    let v = round_f64(nm / s.torque_lsb_nm);
+    let v = round_half_away(nm / s.torque_lsb_nm);
     if v.abs() > 2147483647.0 {
         return Err(UnitsError::Overflow { what, value: v });
     }
@@ -184,8 +186,9 @@ pub struct Scale {
     pub output_cpr: u32,
     /// Gear ratio N (motor rev per output rev).
     pub gear_ratio: f64,
-    /// Size of one torque LSB in N·m (the card's default: [`TORQUE_LSB_NM`] = 0.1 mN·m). All
-    /// torque-valued machine quantities (commands, limits, sensor values) are in this LSB.
+    /// Size of one torque LSB in N·m (the card's: the wire's [`MOTOR_TORQUE_NM_PER_LSB`] =
+    /// 0.1 mN·m). All torque-valued machine quantities (commands, limits, sensor values) are in
+    /// this LSB. The parameter table ([`crate::card::si`]) is always in the wire's LSB.
     pub torque_lsb_nm: f64,
 }
 
@@ -197,7 +200,7 @@ impl Scale {
             motor_cpr: 2304,
             output_cpr: 0,
             gear_ratio,
-            torque_lsb_nm: TORQUE_LSB_NM,
+            torque_lsb_nm: MOTOR_TORQUE_NM_PER_LSB,
         }
     }
 
@@ -221,14 +224,20 @@ impl Scale {
 
     /// Loop rate in Hz (rounded).
     pub fn rate_hz(&self) -> u16 {
-        round_f64(1.0 / self.period_s).clamp(1.0, 65535.0) as u16
+        round_half_away(1.0 / self.period_s).clamp(1.0, 65535.0) as u16
+    }
+
+    /// Radians per motor-encoder count (no check: a zero cpr gives infinity, which the
+    /// conversions that use it refuse as not finite or out of range).
+    pub fn motor_rad_per_count(&self) -> f64 {
+        TWO_PI / f64::from(self.motor_cpr)
     }
 
     /// Radians per count of the encoder a law feeds back.
     fn rad_per_count(&self, fb: Feedback) -> Result<f64, UnitsError> {
         self.check()?;
         match fb {
-            Feedback::Colocated => Ok(TWO_PI / f64::from(self.motor_cpr)),
+            Feedback::Colocated => Ok(self.motor_rad_per_count()),
             Feedback::NonColocated => {
                 if self.output_cpr == 0 {
                     Err(UnitsError::BadScale { what: "output_cpr" })
@@ -414,7 +423,7 @@ pub fn lowpass_alpha(s: &Scale, cutoff_hz: f64) -> Result<Alpha, UnitsError> {
     }
     let x = (TWO_PI * cutoff_hz * s.period_s) as f32;
     let a = 1.0 - micromath::F32Ext::exp(-x);
-    let bits = round_f64(f64::from(a) * 32768.0).clamp(0.0, 32768.0) as u16;
+    let bits = round_half_away(f64::from(a) * 32768.0).clamp(0.0, 32768.0) as u16;
     if bits == 0 {
         return Err(UnitsError::RoundsToZero {
             what: "cutoff_hz",
@@ -497,7 +506,7 @@ pub fn friction_config(s: &Scale, g: &FrictionSi) -> Result<FrictionConfig, Unit
         slope_pos: gain_from_f64("tau_c_pos/ramp", f64::from(pos) / ramp_vel)?,
         slope_neg: gain_from_f64("tau_c_neg/ramp", f64::from(neg) / ramp_vel)?,
         viscous: damping_gain(s, Feedback::Colocated, "viscous", g.viscous)?,
-        undercomp: Alpha::from_bits(round_f64(g.undercomp * 32768.0) as u16),
+        undercomp: Alpha::from_bits(round_half_away(g.undercomp * 32768.0) as u16),
         limit: torque_limit(s, "limit", g.limit_nm)?,
     })
 }
@@ -563,8 +572,8 @@ pub fn observer_config(
     }
     let wt = TWO_PI * bandwidth_hz * s.period_s;
     let one = f64::from(1u32 << 24);
-    let a = round_f64(2.0 * zeta * wt * one);
-    let b = round_f64(wt * wt * one);
+    let a = round_half_away(2.0 * zeta * wt * one);
+    let b = round_half_away(wt * wt * one);
     if !(a >= 1.0 && b >= 1.0 && a < 4.0 * one && b < 4.0 * one) {
         return Err(UnitsError::Observer);
     }

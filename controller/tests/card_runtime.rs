@@ -1,13 +1,15 @@
 //! Card runtime behaviour through its sans-IO interface: frames in, actuator and frames out,
 //! time given by the test. The plant is a rigid inertia integrated in f64 here.
 
-use controller::card::si::{self, CardScale};
+use controller::card::si;
 use controller::card::{Card, Sensors};
 use controller::proto::params as p;
+use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::proto::{
     ControlWord, FaultCode, Message, Mode, NodeId, ParamCommit, ParamStatus, ParamWrite, RawFrame,
     ReplyTo, SetChecksum, SetpointMotion, State,
 };
+use controller::units::Scale;
 use embedded_can::{Frame, StandardId};
 use proptest::prelude::*;
 
@@ -130,7 +132,8 @@ impl Rig {
             .handle_frame(self.now, &frame(Message::Sensor(s)))
             .expect("actuator");
         assert_eq!(a.seq, self.seq);
-        self.rotor.advance(f64::from(a.torque) * 1e-4);
+        self.rotor
+            .advance(f64::from(a.torque) * MOTOR_TORQUE_NM_PER_LSB);
         self.drain();
         a
     }
@@ -156,7 +159,7 @@ impl Rig {
 }
 
 fn pd_gains(ke: f64, be: f64, limit_nm: f64) -> Vec<(u16, i32)> {
-    let s = CardScale::THESIS;
+    let s = Scale::thesis(1.0);
     vec![
         (p::KE, si::stiffness(&s, ke).unwrap()),
         (p::BE, si::damping(p::BE, &s, be).unwrap()),
@@ -246,7 +249,7 @@ fn bad_commits_are_rejected_whole() {
     }));
     assert_eq!(r.last_reply().status, ParamStatus::OutOfRange);
     // stability guard: a huge Ke with tiny Be
-    let s = CardScale::THESIS;
+    let s = Scale::thesis(1.0);
     let bad = [
         (p::KE, si::stiffness(&s, 50.0).unwrap()),
         (p::BE, si::damping(p::BE, &s, 0.001).unwrap()),
@@ -400,7 +403,7 @@ fn bus_errors_fault_and_bus_warnings_count() {
 #[test]
 fn bumpless_gain_commit_with_unchanged_error() {
     let mut g = pd_gains(2.0, 0.008, 1.0);
-    g.push((p::KI, si::integral(&CardScale::THESIS, 20.0).unwrap()));
+    g.push((p::KI, si::integral(&Scale::thesis(1.0), 20.0).unwrap()));
     g.push((p::INTEGRATOR_LIMIT, 5000));
     let mut r = armed(Mode::PositionPid, &g);
     r.rotor.load = 0.05; // a constant load the integrator must carry

@@ -6,8 +6,9 @@
 //! Figures are printed (`--nocapture`); every assertion compares against a physical
 //! expectation and could fail.
 
-use controller::fixed_math::{Vel, TORQUE_LSB_NM};
+use controller::fixed_math::Vel;
 use controller::laws::*;
+use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::sensing::{ObserverConfig, TrackingObserver, Unwrapper};
 use controller::units::{self, Scale};
 use std::f64::consts::TAU;
@@ -112,7 +113,7 @@ impl Card {
     fn tick(&mut self, p: &Plant, cfg: &JointConfig, sp: &Setpoint) -> (f64, Measurements) {
         let x = self.unwrap.update(p.counts(self.cpr));
         let (v, _) = self.obs.step(&self.ocfg, x);
-        let tau_env = (p.env_torque() / TORQUE_LSB_NM).round() as i32;
+        let tau_env = (p.env_torque() / MOTOR_TORQUE_NM_PER_LSB).round() as i32;
         let m = Measurements {
             x1: x,
             v1: v,
@@ -121,7 +122,7 @@ impl Card {
             tau_env,
         };
         let o = self.st.step(cfg, sp, &m);
-        (o.command() as f64 * TORQUE_LSB_NM, m)
+        (o.command() as f64 * MOTOR_TORQUE_NM_PER_LSB, m)
     }
 }
 
@@ -295,7 +296,7 @@ fn force_p_and_pi_track_against_a_spring() {
         let cfg = force_cfg(kp, ki, b_in);
         let sp = Setpoint {
             x_d: 0,
-            tau_d: (tau_d / TORQUE_LSB_NM) as i32,
+            tau_d: (tau_d / MOTOR_TORQUE_NM_PER_LSB) as i32,
         };
         run(&mut p, &mut c, &cfg, 2000, |_| sp, |_, _, _, _| {});
         let mut s = 0.0;
@@ -732,7 +733,7 @@ fn noncolocated_pd_step_on_two_mass_plant() {
                 &m,
             )
             .command() as f64
-            * TORQUE_LSB_NM;
+            * MOTOR_TORQUE_NM_PER_LSB;
         let dt = T / SUB as f64;
         for _ in 0..SUB {
             let f = kt * (th1 - th2) + 0.002 * (w1 - w2);

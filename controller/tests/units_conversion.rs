@@ -1,8 +1,9 @@
 //! `units`: SI → machine gains, typed errors, and the §2.9 stability guard (checked against a
 //! direct simulation of the discrete loop, and integer vs f64 variants against each other).
 
-use controller::fixed_math::{Gain, TORQUE_LSB_NM};
+use controller::fixed_math::Gain;
 use controller::laws::{Feedback, RippleError};
+use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::units::*;
 use proptest::prelude::*;
 use std::f64::consts::TAU;
@@ -16,7 +17,7 @@ fn stiffness_and_damping_scale() {
     let s = s2304();
     // 1 N·m/rad at 2304 cpr: 2π/2304 N·m per count = 27.27 LSB/count
     let g = stiffness_gain(&s, Feedback::Colocated, "ke", 1.0).unwrap();
-    let want = TAU / 2304.0 / TORQUE_LSB_NM;
+    let want = TAU / 2304.0 / MOTOR_TORQUE_NM_PER_LSB;
     assert!((g.to_f64() / want - 1.0).abs() < 1e-9, "{}", g.to_f64());
     // damping per Vel LSB (1/16 count/s)
     let b = damping_gain(&s, Feedback::Colocated, "be", 1.0).unwrap();
@@ -27,7 +28,7 @@ fn stiffness_and_damping_scale() {
         ..s
     };
     let g = stiffness_gain(&sn, Feedback::NonColocated, "ke", 30.0).unwrap();
-    let want = TAU / 65536.0 / TORQUE_LSB_NM;
+    let want = TAU / 65536.0 / MOTOR_TORQUE_NM_PER_LSB;
     assert!((g.to_f64() / want - 1.0).abs() < 1e-9);
     // a coarser torque LSB (1 mN·m) gives 10× smaller machine gains and limits
     let coarse = Scale {

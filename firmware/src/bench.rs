@@ -339,8 +339,8 @@ pub const NODE: u8 = 1;
 /// The gains are the host bench's (Ke 0.4 N·m/rad, Be 0.009 N·m·s/rad, Ki 5 N·m/(rad·s),
 /// B1e 0.002 N·m·s/rad on the thesis card), converted with `card::si`.
 pub fn full_param_set() -> heapless::Vec<(u16, i32), 96> {
-    use controller::card::si::{self, CardScale};
-    let s = CardScale::THESIS;
+    use controller::card::si;
+    let s = Scale::thesis(1.0);
     let mut v: heapless::Vec<(u16, i32), 96> = heapless::Vec::new();
     let fixed = [
         (p::KE, si::stiffness(&s, 0.4).unwrap_or(0)),

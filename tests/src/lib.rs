@@ -47,6 +47,6 @@ pub fn hil_identify_record(dir: &Path, preset: &str) -> Recording {
         out,
     ]))
     .expect("identify run");
-    let cols = Columns::new("torque_cmd_nm", "motor_pos_rad");
+    let cols = Columns::new("torque_cmd_Nm", "motor_pos_rad");
     data::load(&dir.join(format!("demo-identify-{preset}.csv")), &cols).expect("HIL record")
 }

@@ -145,7 +145,7 @@ fn vcan_hil_processes_watchdog_and_recording() {
         col("time_s"),
         col("seq"),
         col("output_pos_rad"),
-        col("torque_cmd_nm"),
+        col("torque_cmd_Nm"),
         col("state"),
         col("fault"),
     );

@@ -50,7 +50,7 @@ fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
         "fit",
         rec.to_str().unwrap(),
         "--input",
-        "torque_cmd_nm",
+        "torque_cmd_Nm",
         "--output",
         "motor_pos_rad",
         "--add",

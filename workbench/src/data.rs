@@ -2,10 +2,12 @@
 //! which file, line and column is wrong.
 //!
 //! A recording is any CSV with a header row. Columns are picked by name; a suffix such as
-//! `_s`, `_ms`, `_m`, `_mm`, `_rad`, `_deg`, `_N`, `_Nm`, `_V` gives the unit and, where the
-//! unit is not SI, the factor that converts it (`_deg` → rad, `_mm` → m, `_ms` → s). HIL
-//! recordings use the same convention, so they load directly.
+//! `_s`, `_ms`, `_m`, `_mm`, `_rad`, `_deg`, `_N`, `_Nm`, `_V`, `_rad_s` gives the unit and,
+//! where the unit is not SI, the factor that converts it (`_deg` → rad, `_mm` → m, `_ms` → s);
+//! a unit-like suffix that is not known is refused ([`crate::units`] holds the table and the
+//! rule). HIL recordings are named from the same table, so they load directly.
 
+use crate::units::{unit_of, UnknownUnit};
 use sim_plant::effects::Intersample;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -31,6 +33,14 @@ pub enum DataError {
         column: String,
         /// Columns present.
         have: String,
+    },
+    /// A selected column's name ends in a unit-like suffix the table does not know.
+    #[error("{file}:1: {source}")]
+    UnknownUnit {
+        /// File.
+        file: PathBuf,
+        /// The column and its suffix.
+        source: UnknownUnit,
     },
     /// A cell does not parse as a number.
     #[error("{file}:{line}: column `{column}`: `{cell}` is not a number")]
@@ -191,27 +201,6 @@ pub enum DataError {
         /// Needed.
         need: usize,
     },
-}
-
-/// Unit and SI conversion factor read from a column-name suffix.
-pub fn unit_of(column: &str) -> (&'static str, f64) {
-    let suffix = column.rsplit_once('_').map(|(_, s)| s).unwrap_or("");
-    match suffix {
-        "s" => ("s", 1.0),
-        "ms" => ("s", 1e-3),
-        "us" => ("s", 1e-6),
-        "m" => ("m", 1.0),
-        "mm" => ("m", 1e-3),
-        "rad" => ("rad", 1.0),
-        "deg" => ("rad", std::f64::consts::PI / 180.0),
-        "N" => ("N", 1.0),
-        "Nm" => ("N·m", 1.0),
-        "V" => ("V", 1.0),
-        "A" => ("A", 1.0),
-        "mps" => ("m/s", 1.0),
-        "radps" => ("rad/s", 1.0),
-        _ => ("", 1.0),
-    }
 }
 
 /// Which columns to use and how to scale the input.
@@ -385,10 +374,12 @@ impl Recording {
 
 /// The input's unit as recordings and reports label it: the column's suffix unit, times
 /// `--input-gain` when there is one (`V×35.15…` for EMPS). With `--input-times` the unit is
-/// the product's (a unitless duty times a `_V` column reads `V`).
+/// the product's (a unitless duty times a `_V` column reads `V`). A name [`load`] would refuse
+/// for its suffix reads as unitless here.
 pub fn input_unit(cols: &Columns) -> String {
-    let base = unit_of(&cols.input).0;
-    let u = match cols.input_times.as_deref().map(|c| unit_of(c).0) {
+    let label = |c: &str| unit_of(c).map_or("", |u| u.0);
+    let base = label(&cols.input);
+    let u = match cols.input_times.as_deref().map(label) {
         None | Some("") => base.to_string(),
         Some(t) if base.is_empty() => t.to_string(),
         Some(t) => format!("{base}·{t}"),
@@ -434,10 +425,21 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         names.push(c);
         names.len() - 1
     });
+    // Every selected column's unit, before reading: one unit-like suffix the table does not
+    // know is refused rather than read at a factor of 1.
+    let units = names
+        .iter()
+        .map(|c| unit_of(c))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|source| DataError::UnknownUnit {
+            file: file.clone(),
+            source,
+        })?;
+    let factor = |k: usize| units.get(k).map_or(1.0, |u| u.1);
     let (raw, lines) = read_numeric(path, &names)?;
-    let (_, ts) = unit_of(&cols.time);
-    let (_, us) = unit_of(&cols.input);
-    let (yu, ys) = unit_of(&cols.output);
+    let ts = factor(0);
+    let us = factor(1);
+    let (yu, ys) = units.get(2).copied().unwrap_or(("", 1.0));
     let scale = |k: usize, f: f64| -> Vec<f64> {
         raw.get(k)
             .map(|c| c.iter().map(|v| v * f).collect())
@@ -456,8 +458,8 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
         }
     }
     let mut input = scale(1, us * cols.input_gain);
-    if let (Some(c), Some(k)) = (&cols.input_times, times_at) {
-        for (u, m) in input.iter_mut().zip(scale(k, unit_of(c).1)) {
+    if let Some(k) = times_at {
+        for (u, m) in input.iter_mut().zip(scale(k, factor(k))) {
             *u *= m;
         }
     }
@@ -465,7 +467,7 @@ pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     let load_out = cols
         .load_output
         .as_deref()
-        .map(|c| scale(3, unit_of(c).1 * cols.load_gain));
+        .map(|_| scale(3, factor(3) * cols.load_gain));
     // Every cell is finite (`read_numeric`); what the scaling made of it is checked here.
     let mut input_by = String::from("its unit");
     if cols.input_gain != 1.0 {

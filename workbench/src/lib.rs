@@ -28,3 +28,4 @@ pub mod report;
 pub mod residual;
 pub mod spectral;
 pub mod stats;
+pub mod units;

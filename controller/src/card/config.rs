@@ -17,6 +17,7 @@ use crate::laws::{
     RippleTable,
 };
 use crate::proto::params::{self as p, WatchdogReaction};
+use crate::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_IN_MOTOR_LSB};
 use crate::proto::Mode;
 use crate::sensing::ObserverConfig;
 use crate::units::{self, StabilityError};
@@ -30,9 +31,6 @@ pub const OBSERVER_BANDWIDTH_HZ: f64 = 100.0;
 
 /// Largest single-tick encoder jump (counts) the observer treats as motion.
 pub const OBSERVER_MAX_JUMP: i32 = 4096;
-
-/// Output-torque LSB (0.01 N·m) expressed in law torque LSB (0.1 mN·m).
-pub const OUTPUT_TORQUE_TO_LAW: i32 = 100;
 
 /// Why a parameter set cannot be turned into a running configuration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,8 +142,8 @@ pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     let cpr = f64::from(s.raw(p::MOTOR_COUNTS_PER_REV).max(1));
     let rad_per_count = core::f64::consts::TAU / cpr;
     let period_s = f64::from(s.raw(p::CONTROL_PERIOD)) * 1e-6;
-    let ke_si = q16(ke_raw) * 1e-4 / rad_per_count;
-    let be_si = q16(be_raw) * 1e-4 / rad_per_count * period_s;
+    let ke_si = q16(ke_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count;
+    let be_si = q16(be_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
     let inertia = f64::from(s.raw(p::ROTOR_INERTIA)) * 1e-9;
     let margin = 1.0 - f64::from(s.raw(p::STABILITY_MARGIN)) / 65536.0;
     units::pd_stability(
@@ -165,7 +163,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
     let rate = f64::from(rate_hz(s));
     // Q16.16 per count/tick → per (1/16 count/s): divide by 16·rate.
     let per_rate = |param: u16| gain(param, q16(s.raw(param)) / (16.0 * rate));
-    let out_lsb = f64::from(OUTPUT_TORQUE_TO_LAW);
+    let out_lsb = f64::from(OUTPUT_TORQUE_IN_MOTOR_LSB);
     let torque_limit = s.raw(p::TORQUE_LIMIT).clamp(0, i32::from(i16::MAX));
 
     let ke = gain(p::KE, q16(s.raw(p::KE)))?;
@@ -304,7 +302,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         motor_cpr: u32::try_from(cpr.max(1)).unwrap_or(1),
         output_cpr: 0,
         gear_ratio: 1.0,
-        torque_lsb_nm: crate::fixed_math::TORQUE_LSB_NM,
+        torque_lsb_nm: MOTOR_TORQUE_NM_PER_LSB,
     };
     let observer = units::observer_config(
         &observer_scale(s.raw(p::MOTOR_COUNTS_PER_REV)),

@@ -828,7 +828,8 @@ impl Card {
         let delta = i64::from(self.x_d.wrapping_sub(here as i32));
         Setpoint {
             x_d: here.saturating_add(delta),
-            tau_d: i32::from(self.tau_d_out).saturating_mul(config::OUTPUT_TORQUE_TO_LAW),
+            tau_d: i32::from(self.tau_d_out)
+                .saturating_mul(crate::proto::scale::OUTPUT_TORQUE_IN_MOTOR_LSB),
         }
     }
 
@@ -862,7 +863,7 @@ impl Card {
         };
         let tau_env = s
             .output_torque
-            .map(|t| i32::from(t).saturating_mul(config::OUTPUT_TORQUE_TO_LAW))
+            .map(|t| i32::from(t).saturating_mul(crate::proto::scale::OUTPUT_TORQUE_IN_MOTOR_LSB))
             .unwrap_or(0);
         self.last_meas = Measurements {
             x1,
@@ -1008,8 +1009,10 @@ impl Card {
         let m = if self.telemetry_torque_next {
             Message::TelemetryTorque(TelemetryTorque {
                 torque_cmd: i16::try_from(self.last_cmd).unwrap_or(0),
-                output_torque: i16::try_from(self.last_meas.tau_env / config::OUTPUT_TORQUE_TO_LAW)
-                    .unwrap_or(0),
+                output_torque: i16::try_from(
+                    self.last_meas.tau_env / crate::proto::scale::OUTPUT_TORQUE_IN_MOTOR_LSB,
+                )
+                .unwrap_or(0),
                 seq,
                 limits: self.limits,
             })

@@ -13,6 +13,10 @@
 pub const MOTOR_TORQUE_NM_PER_LSB: f64 = 1.0e-4;
 /// Output (torque-sensor) torque: newton-metres per LSB.
 pub const OUTPUT_TORQUE_NM_PER_LSB: f64 = 1.0e-2;
+/// One output-torque LSB in motor-torque LSBs, the laws' torque unit: the card rescales a
+/// sensor reading or a force setpoint by this integer in the 1 kHz path, where
+/// `OUTPUT_TORQUE_NM_PER_LSB / MOTOR_TORQUE_NM_PER_LSB` (a float) may not be used.
+pub const OUTPUT_TORQUE_IN_MOTOR_LSB: i32 = 100;
 /// Velocity on the wire: encoder counts per second per LSB.
 pub const VELOCITY_COUNTS_PER_S_PER_LSB: i32 = 8;
 /// Nominal sensor / control period, µs (1 kHz).
@@ -40,4 +44,15 @@ pub fn velocity_to_wire(counts_per_s: i32) -> (i16, bool) {
 /// Converts the wire velocity field back to counts/s (exact).
 pub fn velocity_from_wire(v: i16) -> i32 {
     i32::from(v).saturating_mul(VELOCITY_COUNTS_PER_S_PER_LSB)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_torque_ratio_matches_the_two_lsbs() {
+        let ratio = OUTPUT_TORQUE_NM_PER_LSB / MOTOR_TORQUE_NM_PER_LSB;
+        assert!((ratio - f64::from(OUTPUT_TORQUE_IN_MOTOR_LSB)).abs() < 1e-9);
+    }
 }

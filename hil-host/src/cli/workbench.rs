@@ -365,7 +365,9 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let rec_units = if mode == Mode::Equation {
         data::input_unit(&a.data.columns(true))
     } else {
-        data::unit_of(&a.data.output).0.to_string()
+        jointlab_workbench::units::unit_of(&a.data.output)?
+            .0
+            .to_string()
     };
     let charts = report::charts(&res, &m, &rec_units);
     let params = refine::param_rows(&model);

@@ -6,11 +6,12 @@
 
 use anyhow::{anyhow, Result};
 use controller::card::config;
-use controller::card::si::{self, CardScale};
+use controller::card::si;
 use controller::card::ParamStore;
 use controller::proto::params::{self as p, WatchdogReaction};
+use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::proto::Mode;
-use controller::units::motor_gain_from_output;
+use controller::units::{motor_gain_from_output, Scale};
 
 /// Transmission and encoder of the joint the gains are for.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,11 +29,15 @@ pub struct JointScale {
 }
 
 impl JointScale {
-    /// Card scale for motor-encoder gains.
-    pub fn motor(&self) -> CardScale {
-        CardScale {
+    /// The card's scale (period, encoders, transmission) for [`si`]'s conversions. The
+    /// counts per revolution are whole on a card, as the parameter table sends them.
+    pub fn motor(&self) -> Scale {
+        Scale {
             period_s: self.period_s,
-            counts_per_rev: self.motor_cpr,
+            motor_cpr: self.motor_cpr.round() as u32,
+            output_cpr: self.output_cpr.round() as u32,
+            gear_ratio: self.gear_ratio,
+            torque_lsb_nm: MOTOR_TORQUE_NM_PER_LSB,
         }
     }
     /// Motor counts per output radian.

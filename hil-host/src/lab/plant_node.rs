@@ -8,15 +8,11 @@
 //! run is bit-reproducible. Real time: the same per tick, but paced by a 1 kHz wall clock,
 //! counting late and missing actuator frames (see [`super::threaded`]).
 
+use controller::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};
 use controller::proto::{Actuator, Message, NodeId, OutputEncoder, Sensor};
 use sim_plant::{Plant, Sensors as PlantSensors, TrueState};
 
 use crate::bus::ClassicFrame;
-
-/// Output torque LSB on the wire, N·m.
-pub const OUTPUT_TORQUE_LSB: f64 = 0.01;
-/// Motor torque LSB on the wire, N·m.
-pub const MOTOR_TORQUE_LSB: f64 = 1e-4;
 
 /// The plant on the bus.
 #[derive(Debug)]
@@ -94,7 +90,7 @@ impl PlantNode {
             });
             out.extend(m.encode::<ClassicFrame>(self.node).ok());
         }
-        let lsb = (s.torque / OUTPUT_TORQUE_LSB).round();
+        let lsb = (s.torque / OUTPUT_TORQUE_NM_PER_LSB).round();
         let sensor = Sensor {
             motor_counts: s.motor_counts as u32,
             output_torque: Some(lsb.clamp(-32767.0, 32767.0) as i16),
@@ -130,7 +126,7 @@ impl PlantNode {
     /// power stage without a command drives nothing; counted as missing) or it does not drive.
     fn held_torque(&mut self) -> f64 {
         match self.cmd {
-            Some(a) if a.drive => f64::from(a.torque) * MOTOR_TORQUE_LSB,
+            Some(a) if a.drive => f64::from(a.torque) * MOTOR_TORQUE_NM_PER_LSB,
             Some(_) => 0.0,
             None => {
                 self.missing += 1;

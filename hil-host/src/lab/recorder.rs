@@ -20,28 +20,29 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
+use controller::proto::scale::{self, MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};
 use controller::proto::{FaultCode, Message, NodeId, State};
 
 use crate::bus::{BusFault, ClassicFrame};
 use crate::candump::{CandumpWriter, Timestamp};
 
 use super::inject::BusEvent;
-use super::plant_node::{PlantNode, MOTOR_TORQUE_LSB};
+use super::plant_node::PlantNode;
 
 /// The CSV header (the single definition of the recording's columns and units).
 pub const COLUMNS: [&str; 16] = [
     "time_s",
     "seq",
     "setpoint_pos_rad",
-    "setpoint_torque_nm",
+    "setpoint_torque_Nm",
     "motor_pos_rad",
     "output_pos_rad",
     "motor_vel_est_rad_s",
     "motor_vel_rad_s",
     "output_vel_rad_s",
-    "torque_cmd_nm",
-    "torque_sensor_nm",
-    "output_torque_true_nm",
+    "torque_cmd_Nm",
+    "torque_sensor_Nm",
+    "output_torque_true_Nm",
     "state",
     "flags",
     "fault",
@@ -280,9 +281,12 @@ impl Recorder {
             Message::SetpointMotion(s) => {
                 self.setpoint_pos = f64::from(s.position) * self.output_rad_per_motor_count
             }
-            Message::SetpointForce(s) => self.setpoint_torque = f64::from(s.output_torque) * 0.01,
+            Message::SetpointForce(s) => {
+                self.setpoint_torque = f64::from(s.output_torque) * OUTPUT_TORQUE_NM_PER_LSB
+            }
             Message::TelemetryMotion(t) => {
-                self.vel_est = f64::from(t.velocity) * 8.0 * self.motor_rad_per_count
+                self.vel_est =
+                    f64::from(scale::velocity_from_wire(t.velocity)) * self.motor_rad_per_count
             }
             Message::Heartbeat(h) => self.state = h.state,
             Message::Fault(x) => {
@@ -338,7 +342,7 @@ impl Recorder {
             motor_vel_rad_s: s.motor_velocity,
             output_vel_rad_s: s.output_velocity,
             torque_cmd_nm: cmd
-                .map(|a| f64::from(a.torque) * MOTOR_TORQUE_LSB)
+                .map(|a| f64::from(a.torque) * MOTOR_TORQUE_NM_PER_LSB)
                 .unwrap_or(0.0),
             torque_sensor_nm: sens.torque,
             output_torque_true_nm: s.environment_torque,

@@ -26,7 +26,7 @@ pub enum ScenarioKind {
     Backlash,
     /// An identification experiment for the workbench: the free output follows a position
     /// chirp (0.2 → 2 Hz) under colocated PD — many velocity reversals, a decade of speeds and
-    /// accelerations — so that `hil-host diagnose` on the recording (input `torque_cmd_nm`,
+    /// accelerations — so that `hil-host diagnose` on the recording (input `torque_cmd_Nm`,
     /// output `motor_pos_rad`) can name the plant's effects.
     Identify,
 }

@@ -10,6 +10,7 @@
 use std::collections::BTreeMap;
 
 use controller::proto::params::{self as p};
+use controller::proto::scale::{self, MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};
 use controller::proto::{
     ControlWord, FaultCode, LimitFlags, Message, Mode, NodeId, ParamCommit, ParamStatus,
     ParamWrite, ReplyTo, SetChecksum, SetpointForce, SetpointMotion, State,
@@ -320,10 +321,14 @@ impl Supervisor {
             Target::Torque => Message::SetpointMotion(SetpointMotion {
                 position: 0,
                 velocity_ff: 0,
-                torque_ff: (v / 1e-4).round().clamp(-32767.0, 32767.0) as i16,
+                torque_ff: (v / MOTOR_TORQUE_NM_PER_LSB)
+                    .round()
+                    .clamp(-32767.0, 32767.0) as i16,
             }),
             Target::Force => Message::SetpointForce(SetpointForce {
-                output_torque: (v / 0.01).round().clamp(-32767.0, 32767.0) as i16,
+                output_torque: (v / OUTPUT_TORQUE_NM_PER_LSB)
+                    .round()
+                    .clamp(-32767.0, 32767.0) as i16,
             }),
         }
     }
@@ -445,11 +450,13 @@ impl Supervisor {
             },
             Message::TelemetryMotion(t) => {
                 self.telemetry.position = f64::from(t.position) * per_count;
-                self.telemetry.velocity = f64::from(t.velocity) * 8.0 * per_count;
+                self.telemetry.velocity =
+                    f64::from(scale::velocity_from_wire(t.velocity)) * per_count;
             }
             Message::TelemetryTorque(t) => {
-                self.telemetry.torque_cmd = f64::from(t.torque_cmd) * 1e-4;
-                self.telemetry.output_torque = f64::from(t.output_torque) * 0.01;
+                self.telemetry.torque_cmd = f64::from(t.torque_cmd) * MOTOR_TORQUE_NM_PER_LSB;
+                self.telemetry.output_torque =
+                    f64::from(t.output_torque) * OUTPUT_TORQUE_NM_PER_LSB;
                 self.telemetry.limits = t.limits;
             }
             Message::Heartbeat(h) => {

@@ -66,21 +66,6 @@ pub fn encoder_counts(angle: f64, cpr: f64) -> i32 {
     floor as i32
 }
 
-/// Round half away from zero to an integer (as f64::round), by a truncating cast; exact for
-/// |x| < 2⁵², saturating beyond i64.
-#[inline]
-fn round_i64(x: f64) -> i64 {
-    let t = x as i64; // toward zero
-    let frac = x - t as f64;
-    if frac >= 0.5 {
-        t + 1
-    } else if frac <= -0.5 {
-        t - 1
-    } else {
-        t
-    }
-}
-
 impl SensorModel {
     /// A sensor model with its own noise stream.
     pub fn new(cfg: SensorConfig, seed: u64) -> Self {
@@ -112,8 +97,8 @@ impl SensorModel {
         } else {
             torque
         };
-        let torque_counts =
-            round_i64(noisy / c.torque_resolution).clamp(i32::MIN.into(), i32::MAX.into()) as i32;
+        let torque_counts = (crate::fastmath::round(noisy / c.torque_resolution) as i64)
+            .clamp(i32::MIN.into(), i32::MAX.into()) as i32;
         let now = Sensors {
             motor_counts: encoder_counts(motor_angle, c.motor_cpr),
             output_counts: (c.output_cpr > 0.0).then(|| encoder_counts(output_angle, c.output_cpr)),
@@ -150,26 +135,6 @@ mod tests {
         let a = encoder_counts(revs * TAU - TAU / 2304.0 * 0.5, 2304.0);
         let b = encoder_counts(revs * TAU + TAU / 2304.0 * 0.5, 2304.0);
         assert_eq!(b.wrapping_sub(a), 1);
-    }
-
-    #[test]
-    fn integer_rounding_matches_std() {
-        for x in [
-            0.0,
-            0.49,
-            0.5,
-            0.51,
-            1.5,
-            2.5,
-            -0.5,
-            -0.49,
-            -1.5,
-            -2.51,
-            1e12 + 0.5,
-            -7.0,
-        ] {
-            assert_eq!(round_i64(x) as f64, x.round(), "{x}");
-        }
     }
 
     #[test]

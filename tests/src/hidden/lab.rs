@@ -83,12 +83,12 @@
 
 use std::f64::consts::TAU;
 
-use controller::card::si;
+use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::proto::{Message, Mode, NodeId};
 use hil_host::bus::{CanBus, InprocBus, InprocHub};
 use hil_host::lab::card_node::CardNode;
 use hil_host::lab::gains::{self, GainSet, JointScale};
-use hil_host::lab::plant_node::{PlantNode, MOTOR_TORQUE_LSB};
+use hil_host::lab::plant_node::PlantNode;
 use hil_host::lab::recorder::Recorder;
 use hil_host::lab::supervisor::{fault_words, Event, Phase, Supervisor, Target};
 use hil_host::lab::trajectory::Trajectory;
@@ -651,7 +651,7 @@ fn run(
         period_s: PERIOD,
     };
     // The smallest integral gain the card's Q16.16 KI can hold at this encoder.
-    let ki_lsb = si::TORQUE_LSB_NM / (TAU / cpr) / PERIOD / 65536.0;
+    let ki_lsb = MOTOR_TORQUE_NM_PER_LSB / (TAU / cpr) / PERIOD / 65536.0;
     let n2 = n * n;
     let v_limit = 3.0 * d.v_peak + 30.0;
     let set = GainSet {
@@ -727,7 +727,9 @@ fn run(
         for mut m in msgs {
             if let (Message::SetpointMotion(sp), Some(k)) = (&mut m, k) {
                 if let Some(&tff) = d.dither.get(k) {
-                    sp.torque_ff = (tff / MOTOR_TORQUE_LSB).round().clamp(-32767.0, 32767.0) as i16;
+                    sp.torque_ff = (tff / MOTOR_TORQUE_NM_PER_LSB)
+                        .round()
+                        .clamp(-32767.0, 32767.0) as i16;
                 }
             }
             send(&mut sup_bus, node, &m)?;
@@ -1038,7 +1040,9 @@ mod tests {
                     assert!(hi - lo > 0.5, "{family:?} {excitation:?}: {}", hi - lo);
                     // The D/A quantiser's log is the card's exact command (wire LSBs).
                     let exact = r.input.iter().all(|u| {
-                        ((u / MOTOR_TORQUE_LSB) - (u / MOTOR_TORQUE_LSB).round()).abs() < 1e-6
+                        ((u / MOTOR_TORQUE_NM_PER_LSB) - (u / MOTOR_TORQUE_NM_PER_LSB).round())
+                            .abs()
+                            < 1e-6
                     });
                     assert_eq!(exact, family == Family::Quantization, "{family:?}");
                 }
