@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::residual::Residual;
 use super::stats;
+pub use super::stats::noise_floor;
 
 /// Fit % and RMS of a model on one record.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -105,19 +106,6 @@ fn rms(x: &[f64]) -> f64 {
         return 0.0;
     }
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
-}
-
-/// White-noise RMS in a residual: Var(Δ²e) = 6σ² for white e, while smooth (model-error)
-/// content cancels in the second difference. Biased low if the noise itself is low-passed.
-pub fn noise_floor(r: &[f64]) -> f64 {
-    if r.len() < 3 {
-        return 0.0;
-    }
-    let s: f64 = r
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2))
-        .sum();
-    (s / (6.0 * (r.len() - 2) as f64)).sqrt()
 }
 
 /// Fit percentage 100·(1 − ‖y − ŷ‖/‖y − ȳ‖).

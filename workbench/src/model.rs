@@ -352,33 +352,24 @@ impl Model {
                     .map(|(_, p)| p.clone())
             };
             let value = |name: &str| by_name(name).map(|p| p.value).unwrap_or(0.0);
-            match kind {
-                EffectKind::Stribeck => {
-                    shape.stribeck_velocity = value("velocity");
-                    shape.stribeck_exponent = value("exponent");
+            for fs in kind.fit_traits().file_shape {
+                (fs.set)(&mut shape, value(fs.param), n);
+            }
+            // The mode's frequency and damping come from the spring and the inertia split, a
+            // fact of the plant, not of the effect alone.
+            if kind == EffectKind::Compliance {
+                let far = if j_far > 0.0 { j_far } else { 0.5 * j };
+                let k = value("stiffness");
+                if k > 0.0 && far < j {
+                    let (f, zeta) = sim_plant::effects::compliance::mode_from_spring(
+                        k,
+                        value("damping"),
+                        j - far,
+                        far,
+                    );
+                    shape.compliance_frequency = f;
+                    shape.compliance_damping = zeta;
                 }
-                EffectKind::Ripple => shape.ripple_period = value("period"),
-                EffectKind::Cogging => {
-                    shape.cogging_period = std::f64::consts::TAU / (value("cycles_per_rev") * n)
-                }
-                EffectKind::Backlash => shape.backlash_width = value("width"),
-                EffectKind::Deadband => shape.input_scale = value("input_scale"),
-                EffectKind::Quantization => shape.quantum = value("step"),
-                EffectKind::Compliance => {
-                    let far = if j_far > 0.0 { j_far } else { 0.5 * j };
-                    let k = value("stiffness");
-                    if k > 0.0 && far < j {
-                        let (f, zeta) = sim_plant::effects::compliance::mode_from_spring(
-                            k,
-                            value("damping"),
-                            j - far,
-                            far,
-                        );
-                        shape.compliance_frequency = f;
-                        shape.compliance_damping = zeta;
-                    }
-                }
-                _ => {}
             }
             let mut entry = EffectEntry::new(kind, shape);
             for (i, p) in entry.params.iter_mut().enumerate() {
@@ -388,7 +379,9 @@ impl Model {
                 let (v, free) = match (kind, by_name(&p.name)) {
                     (_, Some(q)) => (q.value, q.free),
                     // Equation-error-only amplitudes keep what `EffectEntry::new` gave them.
-                    (EffectKind::Stribeck, None) => (p.value, p.free),
+                    (_, None) if kind.fit_traits().held.iter().any(|(h, _)| *h == p.name) => {
+                        (p.value, p.free)
+                    }
                     (EffectKind::Backlash, None) => (j_far, sim.plant.output_inertia.free),
                     (EffectKind::Compliance, None) => {
                         let far = if j_far > 0.0 { j_far } else { 0.5 * j };
@@ -478,19 +471,13 @@ impl Model {
                     *q = sp(p);
                     continue;
                 }
-                let shape = &e.shape;
-                let set = match (e.kind, spec.name) {
-                    (EffectKind::Stribeck, "velocity") => Some(shape.stribeck_velocity),
-                    (EffectKind::Stribeck, "exponent") => Some(shape.stribeck_exponent),
-                    (EffectKind::Ripple, "period") => Some(shape.ripple_period),
-                    (EffectKind::Cogging, "cycles_per_rev") if shape.cogging_period > 0.0 => {
-                        Some(std::f64::consts::TAU / (shape.cogging_period * n))
-                    }
-                    (EffectKind::Backlash, "width") => Some(shape.backlash_width),
-                    (EffectKind::Deadband, "input_scale") => Some(shape.input_scale),
-                    (EffectKind::Quantization, "step") => Some(shape.quantum),
-                    _ => None,
-                };
+                let set = e
+                    .kind
+                    .fit_traits()
+                    .file_shape
+                    .iter()
+                    .find(|fs| fs.param == spec.name)
+                    .and_then(|fs| (fs.get)(&e.shape, n));
                 if let Some(v) = set {
                     q.value = v;
                 }
@@ -563,21 +550,22 @@ impl Model {
 }
 
 impl EffectEntry {
-    /// An effect with free zero amplitudes — except stribeck's `hold`, fixed at 1: at rest the
-    /// friction is the applied torque (see `sim_plant::effects::stribeck::fingerprint`).
+    /// An effect with free zero amplitudes, except those the effect holds at a physical value
+    /// (`FitTraits::held`: stribeck's `hold` is 1, at rest the friction is the applied torque).
     pub fn new(kind: EffectKind, shape: Shape) -> Self {
+        let held = kind.fit_traits().held;
         EffectEntry {
             kind,
             shape,
             params: kind
                 .param_names()
                 .iter()
-                .map(|&n| match (kind, n) {
-                    (EffectKind::Stribeck, "hold") => Param {
+                .map(|&n| match held.iter().find(|(h, _)| *h == n) {
+                    Some(&(_, v)) => Param {
                         free: false,
-                        ..Param::free(n, 1.0)
+                        ..Param::free(n, v)
                     },
-                    _ => Param::free(n, 0.0),
+                    None => Param::free(n, 0.0),
                 })
                 .collect(),
         }

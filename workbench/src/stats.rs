@@ -228,6 +228,19 @@ pub fn cross_correlation(x: &[f64], y: &[f64], max_lag: usize) -> Vec<(i64, f64)
 }
 
 /// Deterministic test noise.
+/// White-noise RMS in a signal (a residual, a recorded input): Var(Δ²e) = 6σ² for white e, while smooth (model-error)
+/// content cancels in the second difference. Biased low if the noise itself is low-passed.
+pub fn noise_floor(r: &[f64]) -> f64 {
+    if r.len() < 3 {
+        return 0.0;
+    }
+    let s: f64 = r
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2))
+        .sum();
+    (s / (6.0 * (r.len() - 2) as f64)).sqrt()
+}
+
 #[cfg(test)]
 pub(crate) mod tests_support {
     /// Uniform on [0, 1) from a counter (SplitMix64): white, unlike a linear congruence of the

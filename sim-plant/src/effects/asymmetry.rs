@@ -23,7 +23,7 @@ pub const AMPLITUDES: &[&str] = &["coulomb_extra", "viscous_extra"];
 pub const SIGN: Option<f64> = None;
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits::PLAIN;
+pub const FIT: FitTraits = FitTraits { sign_shaped: true, ..FitTraits::PLAIN };
 
 crate::define_params! {
     /// Extra Coulomb level in the positive direction, τc⁺ − τc⁻ (N·m).

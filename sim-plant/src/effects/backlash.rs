@@ -24,7 +24,7 @@
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FitTraits, ShapeSearch};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "backlash dead zone of width b in the transmission; flat zone of \
@@ -39,7 +39,13 @@ pub const AMPLITUDES: &[&str] = &["load_inertia"];
 pub const SIGN: Option<f64> = Some(1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { searched_shape: true, band_limit: false, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    search: ShapeSearch::Gap,
+    file_shape: &[same_shape!("width" => backlash_width)],
+    band_limit: false,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Total width of the dead zone (rad at the output).

@@ -12,7 +12,8 @@
 
 use super::laws::PeriodicTorque;
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FileShape, FitTraits};
+use std::f64::consts::TAU;
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "motor cogging periodic in rotor angle (9 cycles/rev for the \
@@ -26,7 +27,16 @@ pub const AMPLITUDES: &[&str] = &["sin", "cos"];
 pub const SIGN: Option<f64> = None;
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { searched_shape: true, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    // The file counts cycles per motor revolution; the fit's period is at the output.
+    file_shape: &[FileShape {
+        param: "cycles_per_rev",
+        get: |s, n| (s.cogging_period > 0.0).then(|| TAU / (s.cogging_period * n)),
+        set: |s, v, n| s.cogging_period = TAU / (v * n),
+    }],
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Sine amplitude (N·m, output-referred).

@@ -23,7 +23,7 @@
 
 use super::signal::{biquad2, free_response2, highpass2, log_space};
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FitTraits, ShapeSearch};
 
 /// Stiffness used when backlash is present without a compliance effect (N·m/rad).
 pub const DEFAULT_STIFFNESS: f64 = 1.0e4;
@@ -41,7 +41,14 @@ pub const AMPLITUDES: &[&str] = &["inertia_ratio"];
 pub const SIGN: Option<f64> = Some(-1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    search: ShapeSearch::Mode,
+    band_limit: false,
+    // The motion form is a resonant filter of the acceleration; the command form is built
+    // from the recorded input and carries none of the position's noise.
+    motion_linear: |s| s.compliance_near_inertia > 0.0,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Stiffness beyond the knee, or of the whole spring without a knee (N·m/rad, output).

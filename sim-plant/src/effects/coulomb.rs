@@ -13,7 +13,7 @@
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FitTraits, ShapeSearch};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "Coulomb friction R = τc·sign(v), sticks at rest; residual is a \
@@ -26,7 +26,12 @@ pub const AMPLITUDES: &[&str] = &["torque"];
 pub const SIGN: Option<f64> = Some(1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { dry_friction: true, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    search: ShapeSearch::Sign,
+    dry_friction: true,
+    sign_shaped: true,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Coulomb friction level (N·m, output-referred), both directions.

@@ -32,6 +32,7 @@ pub const FIT: FitTraits = FitTraits {
         get: |s| s.deadband_width,
         set: |s, v| s.deadband_width = v,
     }),
+    file_shape: &[same_shape!("input_scale" => input_scale)],
     band_limit: false,
     ..FitTraits::PLAIN
 };

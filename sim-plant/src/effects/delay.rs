@@ -12,7 +12,7 @@
 
 use super::signal::{derivative, moving_average};
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FitTraits, ShapeSearch};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "transport delay τ of the command; residual ≈ τ·du/dt (leads the \
@@ -25,7 +25,12 @@ pub const AMPLITUDES: &[&str] = &["delay"];
 pub const SIGN: Option<f64> = Some(1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    search: ShapeSearch::Delay,
+    band_limit: false,
+    amplitude_by_search: true,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Delay τ (s).

@@ -297,6 +297,54 @@ pub struct SmoothShape {
     pub set: fn(&mut Shape, f64),
 }
 
+/// A shape parameter of the model file and where the fit keeps it in [`Shape`]. The file holds
+/// what a user measures (cycles per motor revolution), the fit what the columns use (a period
+/// at the output), so reading and writing get the gear ratio.
+#[derive(Clone, Copy, Debug)]
+pub struct FileShape {
+    /// The parameter's name in the model file (role `Shape`).
+    pub param: &'static str,
+    /// The file's value from the fit's shape and the gear ratio; `None` where the shape does
+    /// not know it (an unknown period), so the file keeps its own.
+    pub get: fn(&Shape, f64) -> Option<f64>,
+    /// Writes the file's value (and the gear ratio) into the fit's shape.
+    pub set: fn(&mut Shape, f64, f64),
+}
+
+/// A [`FileShape`] the file and the fit hold in the same units:
+/// `same_shape!("width" => backlash_width)`.
+macro_rules! same_shape {
+    ($param:literal => $field:ident) => {
+        $crate::effects::FileShape {
+            param: $param,
+            get: |s, _| Some(s.$field),
+            set: |s, v, _| s.$field = v,
+        }
+    };
+}
+
+/// How the refit searches an effect's shape on a record. The effect declares which search
+/// suits its fingerprint; the searches themselves live in the workbench's refit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShapeSearch {
+    /// Nothing to search: a fixed shape, or one the model file gives.
+    None,
+    /// The sign function's smoothing ε and lead: the reversal shape of dry friction.
+    Sign,
+    /// A spatial period, on a log grid refined around the residual's periodogram peaks.
+    Period,
+    /// A transmission mode's frequency and damping.
+    Mode,
+    /// A quantiser's step and the blur of the recorded command.
+    Quantum,
+    /// A dead zone's width and the load's coast time through it.
+    Gap,
+    /// The stick window and the Stribeck curve's velocity and exponent.
+    Stick,
+    /// A pure delay τ, by a 1-D search on the delayed measured input, with its curvature σ.
+    Delay,
+}
+
 /// What the fitter and the diagnosis need to know about an effect beyond its columns,
 /// declared by the effect's module (`FIT`) so that no `match` on the effect lives in the
 /// workbench.
@@ -305,14 +353,33 @@ pub struct FitTraits {
     /// The shape is searched per record (a period, a width, a step): it costs one parameter
     /// in a model comparison on top of the amplitudes.
     pub searched_shape: bool,
+    /// How the refit searches the shape.
+    pub search: ShapeSearch,
     /// The smooth shape parameter the refit's LM refines, if any.
     pub smooth_shape: Option<SmoothShape>,
+    /// The model file's shape parameters and their place in [`Shape`].
+    pub file_shape: &'static [FileShape],
+    /// Amplitudes the refit holds at a physical value instead of fitting them (name, value).
+    pub held: &'static [(&'static str, f64)],
     /// The columns are built from unfiltered signals (a sign, a periodic function of the
     /// position) and must go through the residual's low-pass; false for columns already built
     /// from filtered signals or the instrument, and for constants.
     pub band_limit: bool,
     /// Part of the dry friction that holds a joint at rest (it joins the stick state).
     pub dry_friction: bool,
+    /// The columns switch with the direction of motion through the dry friction's sign
+    /// function: they share its smoothing, lead and stick window, so friction reverses as one.
+    pub sign_shaped: bool,
+    /// Whether the columns are linear functions of the measured motion for this shape (so the
+    /// position's noise reaches them through a linear filter the noise model can follow).
+    pub motion_linear: fn(&Shape) -> bool,
+    /// The amplitude is the shape itself (a delay's τ), found by the search on the measured
+    /// input and never by least squares, whose column would carry the input's noise; in the
+    /// model the effect acts on the measured input.
+    pub amplitude_by_search: bool,
+    /// Effects a model must hold for this one to be physical (stribeck is the excess of
+    /// stiction above a Coulomb level).
+    pub requires: &'static [EffectKind],
     /// Effects this one contains as a special case (a ripple of period 2π is gravity): a
     /// swap between them is a nested comparison BIC can judge.
     pub nests: &'static [EffectKind],
@@ -323,11 +390,23 @@ impl FitTraits {
     /// nesting nothing: the base the modules' `FIT` constants start from.
     pub const PLAIN: FitTraits = FitTraits {
         searched_shape: false,
+        search: ShapeSearch::None,
         smooth_shape: None,
+        file_shape: &[],
+        held: &[],
         band_limit: true,
         dry_friction: false,
+        sign_shaped: false,
+        motion_linear: never,
+        amplitude_by_search: false,
+        requires: &[],
         nests: &[],
     };
+}
+
+/// [`FitTraits::motion_linear`] of effects whose columns are nonlinear in the motion.
+fn never(_: &Shape) -> bool {
+    false
 }
 
 /// Declares every effect once: enum variant ⇒ module. Generates [`EffectKind`], its name
@@ -663,6 +742,38 @@ mod tests {
             if f.searched_shape && k != EffectKind::Cogging {
                 assert!(grid.len() > 1, "{k}: a searched shape needs a grid");
             }
+            // The file's shape parameters are the effect's `Shape` parameters, each written
+            // back as read (at a gear ratio other than 1, so a conversion must be inverted).
+            for fs in f.file_shape {
+                let spec = k.params().iter().find(|p| p.name == fs.param);
+                assert!(
+                    spec.is_some_and(|p| p.role == crate::param::Role::Shape),
+                    "{k}: file shape `{}` is not a shape parameter",
+                    fs.param
+                );
+                let mut s = Shape::default();
+                (fs.set)(&mut s, 0.37, 7.0);
+                let back = (fs.get)(&s, 7.0).unwrap_or(f64::NAN);
+                assert!(
+                    (back - 0.37).abs() < 1e-12,
+                    "{k}: `{}` reads {back}",
+                    fs.param
+                );
+            }
+            for (name, _) in f.held {
+                assert!(k.param_names().contains(name), "{k} holds unknown `{name}`");
+            }
+            assert!(!f.requires.contains(&k), "{k} requires itself");
+            if f.search == ShapeSearch::Period {
+                assert!(
+                    f.smooth_shape.is_some(),
+                    "{k}: a period search refines the smooth shape"
+                );
+            }
+            assert!(
+                !f.amplitude_by_search || f.search != ShapeSearch::None,
+                "{k}: an amplitude found by search needs a search"
+            );
         }
         assert!(smooth > 0);
     }

@@ -13,7 +13,7 @@
 
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
-use super::FitTraits;
+use super::{FitTraits, ShapeSearch};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "quantisation of the command (D/A steps Δ); residual is a bounded \
@@ -26,7 +26,13 @@ pub const AMPLITUDES: &[&str] = &["gain"];
 pub const SIGN: Option<f64> = Some(1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { searched_shape: true, band_limit: false, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    searched_shape: true,
+    search: ShapeSearch::Quantum,
+    file_shape: &[same_shape!("step" => quantum)],
+    band_limit: false,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Quantiser step Δ (N·m, output-referred); 0 = none.

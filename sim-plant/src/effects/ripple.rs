@@ -15,7 +15,7 @@ use std::f64::consts::TAU;
 use super::laws::PeriodicTorque;
 use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
-use super::{EffectKind, FitTraits, SmoothShape};
+use super::{EffectKind, FitTraits, ShapeSearch, SmoothShape};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "transmission ripple periodic in output angle (tooth/lobe/roller \
@@ -35,6 +35,8 @@ pub const FIT: FitTraits = FitTraits {
         get: |s| s.ripple_period,
         set: |s, v| s.ripple_period = v,
     }),
+    search: ShapeSearch::Period,
+    file_shape: &[same_shape!("period" => ripple_period)],
     nests: &[EffectKind::Gravity],
     ..FitTraits::PLAIN
 };

@@ -11,7 +11,7 @@
 
 use super::signal::{log_space, positive_or, smooth_sign};
 use super::{EffectLaws, Shape, Trajectory};
-use super::{FitTraits, SmoothShape};
+use super::{EffectKind, FitTraits, ShapeSearch, SmoothShape};
 
 /// One-line description and fingerprint.
 pub const DESCRIBE: &str = "stiction above Coulomb with a Stribeck transition, \
@@ -33,7 +33,15 @@ pub const FIT: FitTraits = FitTraits {
         get: |s| s.stribeck_velocity,
         set: |s, v| s.stribeck_velocity = v,
     }),
+    search: ShapeSearch::Stick,
+    file_shape: &[
+        same_shape!("velocity" => stribeck_velocity),
+        same_shape!("exponent" => stribeck_exponent),
+    ],
+    // At rest the friction is the applied torque (see `fingerprint`).
+    held: &[("hold", 1.0)],
     dry_friction: true,
+    requires: &[EffectKind::Coulomb],
     ..FitTraits::PLAIN
 };
 

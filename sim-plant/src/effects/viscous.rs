@@ -19,7 +19,11 @@ pub const AMPLITUDES: &[&str] = &["damping"];
 pub const SIGN: Option<f64> = Some(1.0);
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits { band_limit: false, ..FitTraits::PLAIN };
+pub const FIT: FitTraits = FitTraits {
+    band_limit: false,
+    motion_linear: |_| true,
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Viscous coefficient (N·m·s/rad, output-referred), both directions.

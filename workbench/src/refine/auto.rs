@@ -93,11 +93,11 @@ pub fn auto_observed(
     loop {
         let d = diagnose::diagnose(model, p, opts);
         for c in &d.candidates {
-            // Significant candidates, and the best ripple even when not significant: a ripple
-            // period between grid points explains little at the grid, and gravity (a ripple of
-            // period 2π) takes its place; the swap pass then tries ripple for gravity.
-            let keep =
-                c.significant || (c.effect == EffectKind::Ripple && model.has(EffectKind::Gravity));
+            // Significant candidates, and the best of an effect nesting one in the model even
+            // when not significant: a ripple period between grid points explains little at the
+            // grid, and gravity (a ripple of period 2π) takes its place; the swap pass then
+            // tries ripple for gravity.
+            let keep = c.significant || c.effect.fit_traits().nests.iter().any(|&k| model.has(k));
             if keep && !seen.iter().any(|s| s.effect == c.effect) {
                 seen.push(c.clone());
             }
@@ -353,7 +353,9 @@ pub(super) fn choose(
 /// in for Coulomb friction on the estimation record (a joint with plain Coulomb friction
 /// sticks too) and beat it on BIC, while the decaying curve mispredicts faster motion.
 fn coherent(m: &Model) -> bool {
-    !m.has(EffectKind::Stribeck) || m.has(EffectKind::Coulomb)
+    m.effects
+        .iter()
+        .all(|e| e.kind.fit_traits().requires.iter().all(|&r| m.has(r)))
 }
 
 /// BIC decrease a closing swap must achieve (2: "positive evidence" on Kass & Raftery's scale).

@@ -29,7 +29,7 @@ pub use auto::{auto, auto_observed, AutoRun, AutoStep};
 pub use search::best_shape;
 
 use serde::Serialize;
-use sim_plant::effects::{EffectKind, Shape};
+use sim_plant::effects::{EffectKind, Shape, ShapeSearch};
 
 use super::fit;
 pub use super::metrics::Score;
@@ -127,11 +127,11 @@ pub fn refit_added(model: &mut Model, p: &Prepared, first: usize) -> Result<(), 
 }
 
 fn refit_searching(model: &mut Model, p: &Prepared, only: Only) -> Result<(), fit::FitError> {
-    let stribeck = model
-        .effects
-        .iter()
-        .any(|e| e.kind == EffectKind::Stribeck && e.params.iter().any(|q| q.free));
-    if !stribeck {
+    // A stick window is searched from several starts (`refit_each_start`).
+    let stick = model.effects.iter().any(|e| {
+        e.kind.fit_traits().search == ShapeSearch::Stick && e.params.iter().any(|q| q.free)
+    });
+    if !stick {
         return refit_from(model, p, StickStart::SEARCHED, only);
     }
     let fits = refit_each_start(model, p, only);

@@ -3,7 +3,7 @@
 //! step, the backlash width and the load's time constant, Stribeck's stick window), each a
 //! line, grid or golden-section search on [`ls_rss`].
 
-use sim_plant::effects::{backlash, EffectKind, Shape};
+use sim_plant::effects::{backlash, EffectKind, Shape, ShapeSearch};
 
 use super::super::diagnose;
 use super::super::fit::{self, gram, gram_inverse};
@@ -233,14 +233,13 @@ pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart, 
     let sign = model
         .effects
         .iter()
-        .find(|e| e.kind == EffectKind::Coulomb)
+        .find(|e| e.kind.fit_traits().search == ShapeSearch::Sign)
         .map(|e| (e.shape.sign_epsilon, e.shape.sign_lead));
     if let Some((eps, lead)) = sign {
-        for e in model
-            .effects
-            .iter_mut()
-            .filter(|e| e.kind == EffectKind::Asymmetry)
-        {
+        for e in model.effects.iter_mut().filter(|e| {
+            let f = e.kind.fit_traits();
+            f.sign_shaped && f.search == ShapeSearch::None
+        }) {
             e.shape.sign_epsilon = eps;
             e.shape.sign_lead = lead;
         }
@@ -268,8 +267,8 @@ fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
         if !entry.params.iter().any(|q| q.free) {
             continue;
         }
-        match entry.kind {
-            EffectKind::Delay => {
+        match entry.kind.fit_traits().search {
+            ShapeSearch::Delay => {
                 let grid: Vec<f64> = (0..=30).map(|k| k as f64 * dt).collect();
                 let (t0, _) = line_search(model, p, e, &grid, &set_delay);
                 let (t1, r1) = golden(
@@ -298,19 +297,23 @@ fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
                     });
                 }
             }
-            EffectKind::Coulomb => {
+            ShapeSearch::Sign => {
                 let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
                 let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
                 search_sign(model, p, e, &set_eps, &set_lead, true);
             }
-            EffectKind::Ripple => {
-                let grid = sim_plant::effects::shape_grid(EffectKind::Ripple, &p.trajectory());
+            ShapeSearch::Period => {
+                // The period is the effect's smooth shape (the registry test holds it to that).
+                let Some(acc) = entry.kind.fit_traits().smooth_shape else {
+                    continue;
+                };
+                let grid = sim_plant::effects::shape_grid(entry.kind, &p.trajectory());
                 let step = if grid.len() > 1 {
-                    grid[1].ripple_period / grid[0].ripple_period
+                    (acc.get)(&grid[1]) / (acc.get)(&grid[0])
                 } else {
                     1.0
                 };
-                let p0 = entry.shape.ripple_period;
+                let p0 = (acc.get)(&entry.shape);
                 let mut xs: Vec<f64> = (-10..=10)
                     .map(|k| p0 * step.powf(k as f64 / 10.0))
                     .collect();
@@ -318,21 +321,19 @@ fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
                 // step (×1.25) off its period, so the coarse best can be anywhere: add the
                 // peaks of a fine position periodogram of the residual without the ripple.
                 if let (Some(lo), Some(hi)) = (grid.first(), grid.last()) {
-                    for peak in
-                        periodogram_peaks(model, p, e, lo.ripple_period, hi.ripple_period, 3)
-                    {
+                    for peak in periodogram_peaks(model, p, e, (acc.get)(lo), (acc.get)(hi), 3) {
                         xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
                     }
                 }
                 let set_period =
-                    |m: &mut Model, e: usize, x: f64| m.effects[e].shape.ripple_period = x;
+                    |m: &mut Model, e: usize, x: f64| (acc.set)(&mut m.effects[e].shape, x);
                 line_search(model, p, e, &xs, &set_period);
             }
-            EffectKind::Compliance => search_compliance(model, p, e),
-            EffectKind::Quantization => search_quantum(model, p, e),
-            EffectKind::Backlash => search_backlash(model, p, e),
-            EffectKind::Stribeck => search_stick(model, p, e, start),
-            _ => {}
+            ShapeSearch::Mode => search_compliance(model, p, e),
+            ShapeSearch::Quantum => search_quantum(model, p, e),
+            ShapeSearch::Gap => search_backlash(model, p, e),
+            ShapeSearch::Stick => search_stick(model, p, e, start),
+            ShapeSearch::None => {}
         }
     }
 }
@@ -514,7 +515,7 @@ fn set_stick(m: &mut Model, e: usize, vh: f64) {
     let vh = vh.max(0.0);
     m.effects[e].shape.stick_velocity = vh;
     for x in m.effects.iter_mut() {
-        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+        if x.kind.fit_traits().sign_shaped {
             x.shape.stick_velocity = vh;
         }
     }
@@ -571,7 +572,7 @@ fn search_stick(model: &mut Model, p: &Prepared, e: usize, start: StickStart) {
 fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
     f(&mut m.effects[e].shape);
     for x in m.effects.iter_mut() {
-        if matches!(x.kind, EffectKind::Coulomb | EffectKind::Asymmetry) {
+        if x.kind.fit_traits().sign_shaped {
             f(&mut x.shape);
         }
     }

@@ -47,7 +47,7 @@ pub fn candidate_columns_on(kind: EffectKind, t: &Trajectory, shape: &Shape) -> 
 /// [`crate::refine`]; its amplitude is never a free least-squares column, see
 /// [`design`]), the model's prediction is the input actually delayed, `û = u − (u − u(t − τ))`.
 pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f64>> {
-    if kind == EffectKind::Delay {
+    if kind.fit_traits().amplitude_by_search {
         let t = Trajectory {
             input: &p.input,
             ..p.trajectory()
@@ -77,7 +77,7 @@ pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
 /// column holds the measured input, whose noise would bias a least-squares amplitude; τ is
 /// fitted by a 1-D search on the delayed input instead).
 fn ls_free(kind: Option<EffectKind>, free: bool) -> bool {
-    free && kind != Some(EffectKind::Delay)
+    free && !kind.is_some_and(|k| k.fit_traits().amplitude_by_search)
 }
 
 /// The record's initial-state columns of a model's effects with internal dynamics (see
@@ -203,16 +203,13 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
     if p.stick_velocity.is_nan() || p.stick_velocity <= 0.0 {
         return None;
     }
-    let level = |kind: EffectKind| {
-        model
-            .effects
-            .iter()
-            .filter(|e| e.kind == kind)
-            .filter_map(|e| e.params.first())
-            .map(|q| q.value.max(0.0))
-            .sum::<f64>()
-    };
-    let limit = level(EffectKind::Coulomb) + level(EffectKind::Stribeck);
+    let limit = model
+        .effects
+        .iter()
+        .filter(|e| dry_friction(e.kind))
+        .filter_map(|e| e.params.first())
+        .map(|q| q.value.max(0.0))
+        .sum::<f64>();
     if !model.has(EffectKind::Coulomb) || limit <= 0.0 {
         return None;
     }
@@ -272,11 +269,7 @@ fn column_noise(model: &Model, p: &Prepared, d: &Design) -> Vec<(usize, usize, f
 /// the command form is built from the recorded input and has none of the position's noise).
 /// Nonlinear columns (a sign, a periodic function of the position) carry little of it.
 fn motion_linear(kind: EffectKind, shape: &Shape) -> bool {
-    match kind {
-        EffectKind::Viscous => true,
-        EffectKind::Compliance => shape.compliance_near_inertia > 0.0,
-        _ => false,
-    }
+    (kind.fit_traits().motion_linear)(shape)
 }
 
 /// Impulse responses of the free columns of `d` to a unit impulse of the raw position, from

@@ -174,7 +174,7 @@ impl Prepared {
             Some(r) => (&r.input, &r.output, r.load_output.as_ref()),
             None => (&rec.input, &rec.output, rec.load_output.as_ref()),
         };
-        let input_sigma = super::super::metrics::noise_floor(raw_input);
+        let input_sigma = super::super::stats::noise_floor(raw_input);
         let floor = input_sigma * diff::noise_gain(fc, 1.0 / rec.dt);
         let acc_gain2 = diff::acceleration_noise_gain(fc, rec.dt).powi(2);
         let position_noise_var = position_noise_variance(raw_output);
