@@ -77,8 +77,8 @@ fn record() -> Recording {
     let model = sim_plant::preset("whoi-cable-30").expect("preset");
     let sc = Scenario::new(ScenarioKind::Step, &model).expect("scenario");
     let j = sc.scale;
-    let n = j.gear_ratio;
-    let m = j.motor();
+    let n = j.gear_ratio();
+    let m = j.card;
     let node = NodeId::new(NODE).expect("node");
     let pd = GainSet {
         watchdog_ms: 100,

@@ -134,7 +134,7 @@ fn lockstep(seconds: f64) {
         "long run",
         &csv,
         lab.recorder.tally().rows,
-        lab.scenario.scale.gear_ratio,
+        lab.scenario.scale.gear_ratio(),
     )
     .expect("plot");
     let sizes: u64 = std::fs::read_dir(dir.path())

@@ -331,7 +331,7 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             &format!("{} — {}", kind.name(), a.plant.label()),
             &csv,
             lab.recorder.tally().rows,
-            lab.scenario.scale.gear_ratio,
+            lab.scenario.scale.gear_ratio(),
         )?;
         r.files = [&csv, &log, &png]
             .iter()
@@ -1017,7 +1017,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             &format!("{} — {}", sc.kind.name(), a.sup.plant.label()),
             &csv,
             rec.tally().rows,
-            sc.scale.gear_ratio,
+            sc.scale.gear_ratio(),
         )?;
     }
     r.files = [&a.csv, &a.candump, &a.plot]

@@ -13,36 +13,56 @@ use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::proto::Mode;
 use controller::units::{motor_gain_from_output, Scale};
 
-/// Transmission and encoder of the joint the gains are for.
+/// The joint the gains are for: the card's own scale (period, encoders, transmission, torque
+/// LSB, which [`si`] converts with) and the rotor inertia its stability guard needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointScale {
-    /// Gear ratio N (motor rev per output rev).
-    pub gear_ratio: f64,
-    /// Motor encoder counts per motor rev.
-    pub motor_cpr: f64,
-    /// Output encoder counts per output rev (0 = none).
-    pub output_cpr: f64,
+    /// The card's scale.
+    pub card: Scale,
     /// Rotor (input) inertia at the motor, kg·m² (the stability guard's I).
     pub rotor_inertia: f64,
-    /// Control period, s.
-    pub period_s: f64,
 }
 
 impl JointScale {
-    /// The card's scale (period, encoders, transmission) for [`si`]'s conversions. The
-    /// counts per revolution are whole on a card, as the parameter table sends them.
-    pub fn motor(&self) -> Scale {
-        Scale {
-            period_s: self.period_s,
-            motor_cpr: self.motor_cpr.round() as u32,
-            output_cpr: self.output_cpr.round() as u32,
-            gear_ratio: self.gear_ratio,
-            torque_lsb_nm: MOTOR_TORQUE_NM_PER_LSB,
+    /// A card at `period_s` with the wire's torque LSB. Counts per revolution are whole on a
+    /// card, as the parameter table sends them: a model's are rounded here.
+    pub fn new(
+        period_s: f64,
+        motor_cpr: f64,
+        output_cpr: f64,
+        gear_ratio: f64,
+        rotor_inertia: f64,
+    ) -> Self {
+        JointScale {
+            card: Scale {
+                period_s,
+                motor_cpr: motor_cpr.round() as u32,
+                output_cpr: output_cpr.round() as u32,
+                gear_ratio,
+                torque_lsb_nm: MOTOR_TORQUE_NM_PER_LSB,
+            },
+            rotor_inertia,
         }
     }
+
+    /// Gear ratio N (motor rev per output rev).
+    pub fn gear_ratio(&self) -> f64 {
+        self.card.gear_ratio
+    }
+
+    /// Control period, s.
+    pub fn period_s(&self) -> f64 {
+        self.card.period_s
+    }
+
+    /// Motor encoder counts per motor revolution.
+    pub fn motor_cpr(&self) -> f64 {
+        f64::from(self.card.motor_cpr)
+    }
+
     /// Motor counts per output radian.
     pub fn motor_counts_per_output_rad(&self) -> f64 {
-        self.motor_cpr * self.gear_ratio / std::f64::consts::TAU
+        self.motor_cpr() * self.gear_ratio() / std::f64::consts::TAU
     }
 }
 
@@ -142,16 +162,16 @@ fn si_err(e: si::SiError) -> anyhow::Error {
 impl GainSet {
     /// The parameter entries for this set on `joint` (plant constants included).
     pub fn entries(&self, j: &JointScale) -> Result<Vec<(u16, i32)>> {
-        let n = j.gear_ratio;
-        let m = j.motor();
+        let n = j.gear_ratio();
+        let m = j.card;
         let mg = |k: f64| motor_gain_from_output(k, n);
         let mut e = vec![
             (
                 p::ROTOR_INERTIA,
                 si::inertia(j.rotor_inertia).map_err(si_err)?,
             ),
-            (p::MOTOR_COUNTS_PER_REV, j.motor_cpr.round() as i32),
-            (p::OUTPUT_COUNTS_PER_REV, j.output_cpr.round() as i32),
+            (p::MOTOR_COUNTS_PER_REV, m.motor_cpr as i32),
+            (p::OUTPUT_COUNTS_PER_REV, m.output_cpr as i32),
             (p::GEAR_RATIO, (n * 65536.0).round() as i32),
             (
                 p::KE,

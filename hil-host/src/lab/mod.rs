@@ -181,8 +181,8 @@ impl Lab {
             plant: PlantNode::new(plant, opts.node),
             recorder: Recorder::new(
                 opts.node,
-                scenario.scale.motor_cpr,
-                scenario.scale.gear_ratio,
+                scenario.scale.motor_cpr(),
+                scenario.scale.gear_ratio(),
             ),
             supervisor,
             card_bus: link(Node::Card, 1),

@@ -83,13 +83,13 @@ pub struct Scenario {
 
 /// Joint constants of a model (what the supervisor must know).
 pub fn joint_scale(m: &Model) -> JointScale {
-    JointScale {
-        gear_ratio: m.plant.gear_ratio.value,
-        motor_cpr: m.motor.counts_per_rev.value,
-        output_cpr: m.sensors.output_counts_per_rev.value,
-        rotor_inertia: m.motor.inertia.value,
-        period_s: 1e-3,
-    }
+    JointScale::new(
+        1e-3,
+        m.motor.counts_per_rev.value,
+        m.sensors.output_counts_per_rev.value,
+        m.plant.gear_ratio.value,
+        m.motor.inertia.value,
+    )
 }
 
 /// Output stiffness (N·m/rad) at the discrete bound kp = Ke·T²/I (motor side, ×N²).
@@ -104,11 +104,11 @@ impl Scenario {
     /// The scenario `kind` for the joint `model` with the thesis's gain levels.
     pub fn new(kind: ScenarioKind, model: &Model) -> Result<Scenario> {
         let scale = joint_scale(model);
-        let n = scale.gear_ratio;
+        let n = scale.gear_ratio();
         let i1 = scale.rotor_inertia;
         // Motor-side damping giving kd = Be·T/I ≈ 0.6 (§2.9: well inside 0 < kd < 2),
         // expressed at the output (×N²): the damper emulation's level and quick-stop damping.
-        let be_out = 0.6 * i1 / scale.period_s * n * n;
+        let be_out = 0.6 * i1 / scale.period_s() * n * n;
         // Reflected + output inertia the position loops move, and ζ ≈ 0.7 damping for a
         // stiffness k on it.
         let j_out = i1 * n * n + model.plant.output_inertia.value;
@@ -267,8 +267,8 @@ impl Scenario {
                 // (Be = kd·I/T must also fit its Q16.16 wire format: kd 0.5 does for every preset)
                 let kd = 0.5;
                 let kp = 0.95 * 2.0 * kd * (2.0 - kd) / (2.0 + kd);
-                let k = (68.0 / deg).min(kd_max_to_stiffness(kp, engaged, scale.period_s, n));
-                let b = kd * engaged / scale.period_s * n * n;
+                let k = (68.0 / deg).min(kd_max_to_stiffness(kp, engaged, scale.period_s(), n));
+                let b = kd * engaged / scale.period_s() * n * n;
                 Scenario {
                     kind,
                     scale: JointScale {
@@ -298,7 +298,7 @@ impl Scenario {
                 }
             }
         };
-        if s.scale.gear_ratio.is_nan() || s.scale.gear_ratio <= 0.0 {
+        if s.scale.gear_ratio().is_nan() || s.scale.gear_ratio() <= 0.0 {
             bail!("model has no gear ratio");
         }
         Ok(s)

@@ -210,7 +210,7 @@ struct Pass1 {
 impl Pass1 {
     fn new(sc: &Scenario) -> Self {
         Pass1 {
-            n: sc.scale.gear_ratio,
+            n: sc.scale.gear_ratio(),
             duration_s: sc.duration_s,
             rows: 0,
             peak: 0.0,
@@ -393,7 +393,7 @@ where
     F: FnMut() -> anyhow::Result<I>,
     I: Iterator<Item = anyhow::Result<Row>>,
 {
-    let g = sc.scale.gear_ratio;
+    let g = sc.scale.gear_ratio();
     let pos = |r: &Row| r.motor_pos_rad / g;
     // Pass 2. The step instant: the first sample whose setpoint is nearer the target than
     // the start; the response starts from where the joint was one sample before. The value
@@ -462,7 +462,7 @@ where
     // convention), and settling into ±2 % of the setpoint (never, if friction holds the
     // joint outside it: the thesis's error band ≈ stiction / K). The bands are at least two
     // encoder counts wide.
-    let floor = 2.0 * std::f64::consts::TAU / sc.scale.motor_cpr / g;
+    let floor = 2.0 * std::f64::consts::TAU / sc.scale.motor_cpr() / g;
     let band_final = (0.02 * span.abs()).max(floor);
     let band_set = (0.02 * (target - start).abs()).max(floor);
     let (mut c10, mut c90) = (f64::NAN, f64::NAN);
@@ -539,7 +539,7 @@ mod tests {
     fn step_figures_follow_stepinfo() {
         let model = sim_plant::presets::preset("whoi-cable-30").expect("preset");
         let sc = Scenario::new(ScenarioKind::Step, &model).expect("scenario");
-        let n = sc.scale.gear_ratio;
+        let n = sc.scale.gear_ratio();
         let (tau, y_inf, target, t_step) = (0.05, 0.098, 0.1, 0.6);
         let rows: Vec<Row> = (1..=2000)
             .map(|k| {

@@ -405,7 +405,7 @@ impl Supervisor {
         if node != self.node || self.silent_at(self.tick) {
             return;
         }
-        let per_count = std::f64::consts::TAU / self.scale.motor_cpr;
+        let per_count = std::f64::consts::TAU / self.scale.motor_cpr();
         match m {
             Message::ParamResponse(r) => match (r.reply_to, r.status) {
                 (ReplyTo::Commit, ParamStatus::Ok) if self.phase == Phase::Configuring => {

@@ -643,13 +643,7 @@ fn run(
     let parts = ((PERIOD * rate).round() as usize).max(2);
     let n = jt.n;
     let node = NodeId::new(1).ok_or("node 1 is no node number")?;
-    let scale = JointScale {
-        gear_ratio: n,
-        motor_cpr: cpr,
-        output_cpr: cpr,
-        rotor_inertia: jt.i1,
-        period_s: PERIOD,
-    };
+    let scale = JointScale::new(PERIOD, cpr, cpr, n, jt.i1);
     // The smallest integral gain the card's Q16.16 KI can hold at this encoder.
     let ki_lsb = MOTOR_TORQUE_NM_PER_LSB / (TAU / cpr) / PERIOD / 65536.0;
     let n2 = n * n;
