@@ -1,6 +1,7 @@
 //! End-to-end tests across crates live in `tests/tests/`; shared fixtures live here.
 
 pub mod hidden;
+pub mod synth;
 
 use std::path::{Path, PathBuf};
 

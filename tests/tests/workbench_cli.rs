@@ -3,6 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
+use jointlab_tests::synth::PdMass;
+
 use clap::Parser;
 use hil_host::cli::{run, Cli};
 use jointlab_workbench::data::{self, Columns};
@@ -17,42 +19,20 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// A synthetic recording: mass 2 kg, viscous 3, Coulomb 0.8 N, tracked by a PD loop.
-/// A mass with viscous and Coulomb friction under a PD, logged as a drive logs (the position
-/// read when the command is computed, the command then held: zero-order hold).
-fn synth(path: &Path) {
-    synth_logged(path, false)
+/// The PD-tracked mass with its position in mm and a little noise on the logged command,
+/// logged with a zero-order hold or (`mid`) in the middle of each hold.
+fn synth_logged(path: &Path, mid: bool) {
+    PdMass {
+        position_in_mm: true,
+        log_mid_hold: mid,
+        logged_input_noise: 0.005,
+        ..PdMass::new(8000)
+    }
+    .write(path, |_, _| {});
 }
 
-/// [`synth`], logging the position in the middle of each command's hold instead (`mid`).
-fn synth_logged(path: &Path, mid: bool) {
-    let dt = 1e-3;
-    let (m, b, fc) = (2.0, 3.0, 0.8);
-    let (mut x, mut v) = (0.0f64, 0.0f64);
-    let mut s = String::from("time_s,force_N,pos_mm\n");
-    let mut seed = 7u64;
-    let mut rnd = || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
-    for k in 0..8000 {
-        let t = k as f64 * dt;
-        let r = 0.05 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
-            + 0.02 * (2.0 * std::f64::consts::PI * 1.9 * t).sin();
-        let u = 400.0 * (r - x) - 40.0 * v + 0.5 * rnd();
-        for j in 0..10 {
-            if j == if mid { 5 } else { 0 } {
-                s.push_str(&format!("{t},{},{}\n", u + 0.01 * rnd(), 1e3 * x));
-            }
-            let h = dt / 10.0;
-            let a = (u - b * v - fc * v.signum()) / m;
-            v += h * a;
-            x += h * v;
-        }
-    }
-    std::fs::write(path, s).unwrap();
+fn synth(path: &Path) {
+    synth_logged(path, false)
 }
 
 #[test]

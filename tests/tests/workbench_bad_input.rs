@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use jointlab_tests::synth::PdMass;
 use jointlab_workbench::data::{self, Columns, DataError};
 use jointlab_workbench::fit::{self, FitError};
 use jointlab_workbench::model::{Model, ModelError, Unfittable};
@@ -15,37 +16,10 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
-/// A mass of 2 kg with viscous friction 3 N·s/m and Coulomb 0.8 N under a PD loop, 1 kHz,
-/// `rows` rows; `edit(row, [t, u, x])` may change a row's cells (as text).
+/// The PD-tracked mass of [`PdMass`], `rows` rows in m; `edit(row, [t, u, x])` may change a
+/// row's cells (as text).
 fn record(path: &Path, rows: usize, edit: impl Fn(usize, &mut [String; 3])) {
-    let dt = 1e-3;
-    let (m, b, fc) = (2.0, 3.0, 0.8);
-    let (mut x, mut v) = (0.0f64, 0.0f64);
-    let mut seed = 7u64;
-    let mut rnd = || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
-    let mut s = String::from("time_s,force_N,pos_m\n");
-    for k in 0..rows {
-        let t = k as f64 * dt;
-        let r = 0.05 * (std::f64::consts::TAU * 0.7 * t).sin()
-            + 0.02 * (std::f64::consts::TAU * 1.9 * t).sin();
-        let u = 400.0 * (r - x) - 40.0 * v + 0.5 * rnd();
-        let mut cells = [t.to_string(), u.to_string(), x.to_string()];
-        edit(k, &mut cells);
-        s.push_str(&cells.join(","));
-        s.push('\n');
-        for _ in 0..10 {
-            let h = dt / 10.0;
-            let a = (u - b * v - fc * v.signum()) / m;
-            v += h * a;
-            x += h * v;
-        }
-    }
-    std::fs::write(path, s).unwrap();
+    PdMass::new(rows).write(path, edit);
 }
 
 fn cols() -> Columns {
