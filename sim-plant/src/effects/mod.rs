@@ -19,7 +19,8 @@
 //! A new module provides: `DESCRIBE`, `AMPLITUDES` (names of its fingerprint columns'
 //! amplitudes), `SIGN` (admissible sign of the first), `FIT` (what the fitter needs to know
 //! about it, a [`FitTraits`]), a `define_params!` table, and `install`, `fingerprint`,
-//! `shape_grid`.
+//! `shape_grid`. Its shape is searched by one of the refit's searches ([`ShapeSearch`]); only
+//! a fingerprint whose shape none of them fits needs a new search in the workbench.
 //!
 //! ## Sign convention
 //! Every effect is written as a *resisting* torque `R` in the axis equation
