@@ -13,11 +13,11 @@ use controller::proto::{
 };
 use firmware::host::{self, Machine};
 use firmware::stream::Record;
-use hil_host::bus::ClassicFrame;
 use hil_host::lab::card_node::CardNode;
 use hil_host::lab::gains::{FrictionComp, GainSet, JointScale};
 use hil_host::lab::plant_node::PlantNode;
 use hil_host::lab::scenario::{Scenario, ScenarioKind};
+use jointlab_can::bus::ClassicFrame;
 use sim_plant::{Environment, Plant, PlantOptions};
 
 const NODE: u8 = firmware::bench::NODE;

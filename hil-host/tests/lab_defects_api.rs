@@ -3,10 +3,10 @@
 //! card never saw bus-off (2), error frames never reached the candump log (3), and the
 //! recorder kept every row in memory (5). The fuller tests are in `lab_faults.rs`.
 use controller::proto::{FaultCode, State};
-use hil_host::bus::BusFault;
-use hil_host::candump::{read_log, LoggedFrame};
 use hil_host::lab::scenario::{Scenario, ScenarioKind};
 use hil_host::lab::{Lab, LabOptions};
+use jointlab_can::bus::BusFault;
+use jointlab_can::candump::{read_log, LoggedFrame};
 
 fn lab(kind: ScenarioKind) -> Lab {
     let model = sim_plant::preset("harmonic-drive-60").unwrap();
@@ -84,10 +84,10 @@ fn defect5_rows_in_memory_stay_bounded() {
 #[test]
 fn defect4_an_uncommitted_gain_set_is_reported() {
     use controller::proto::Message;
-    use hil_host::bus::{CanBus, ClassicFrame, InprocHub};
     use hil_host::lab::card_node::CardNode;
     use hil_host::lab::plant_node::PlantNode;
     use hil_host::lab::supervisor::{Event, Phase, Supervisor};
+    use jointlab_can::bus::{CanBus, ClassicFrame, InprocHub};
 
     let model = sim_plant::preset("harmonic-drive-60").unwrap();
     let sc = Scenario::new(ScenarioKind::Step, &model).unwrap();

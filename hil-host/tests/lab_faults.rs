@@ -7,14 +7,14 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 use controller::proto::{FaultCode, Message, State};
-use hil_host::bus::BusFault;
-use hil_host::candump::{read_log, LoggedFrame};
 use hil_host::lab::card_node::CardNode;
 use hil_host::lab::inject::{BusEvent, FaultPlan};
 use hil_host::lab::recorder::{read_rows, RECENT_ROWS};
 use hil_host::lab::report::Verdict;
 use hil_host::lab::scenario::{Scenario, ScenarioKind};
 use hil_host::lab::{Lab, LabOptions};
+use jointlab_can::bus::BusFault;
+use jointlab_can::candump::{read_log, LoggedFrame};
 
 fn hil() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hil-host"))
@@ -309,7 +309,7 @@ fn the_card_node_reacts_to_each_error_frame() {
     assert_eq!(react(BusEvent::ErrorPassive.fault()), safe);
     assert_eq!(
         react(BusFault::controller(
-            hil_host::bus::fault::ctrl::RX_PASSIVE,
+            jointlab_can::bus::fault::ctrl::RX_PASSIVE,
             0,
             128
         )),
@@ -324,7 +324,7 @@ fn the_card_node_reacts_to_each_error_frame() {
     ] {
         assert_eq!(react(ev.fault()), (None, 1, false), "{ev}");
     }
-    let recovered = BusFault::controller(hil_host::bus::fault::ctrl::ACTIVE, 0, 0);
+    let recovered = BusFault::controller(jointlab_can::bus::fault::ctrl::ACTIVE, 0, 0);
     assert_eq!(react(recovered), (None, 0, false));
 }
 

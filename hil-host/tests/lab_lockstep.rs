@@ -166,7 +166,7 @@ fn recordings_are_bit_identical_from_the_same_seed() {
     assert_eq!(a, b, "same seed, same bytes (CSV and candump log)");
     assert_ne!(a.0, c.0, "another seed, other sensor noise");
     // the candump log parses back with the can-utils format reader
-    let recs = hil_host::candump::read_log(&dir.join("a.log")).unwrap();
+    let recs = jointlab_can::candump::read_log(&dir.join("a.log")).unwrap();
     assert!(recs.len() > 6 * 2000, "every frame logged: {}", recs.len());
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -13,13 +13,13 @@ use std::io::BufReader;
 use std::time::Instant;
 
 use controller::proto::{FaultCode, Message};
-use hil_host::candump::{CandumpReader, LoggedFrame};
 use hil_host::lab::inject::{BusEvent, FaultPlan, Node};
 use hil_host::lab::mem::rss_bytes;
 use hil_host::lab::recorder::read_rows;
 use hil_host::lab::report::Verdict;
 use hil_host::lab::scenario::{Scenario, ScenarioKind, SETTLE_S};
 use hil_host::lab::{Lab, LabOptions};
+use jointlab_can::candump::{CandumpReader, LoggedFrame};
 
 const FAULTS: [&str; 12] = [
     "bus-off@60",

@@ -16,13 +16,13 @@ use std::process::{Command, Stdio};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use hil_host::bus::embedded_can::{self, ExtendedId, StandardId};
-use hil_host::bus::socketcan_bus::sys::{self, Socket, SocketOptions};
-use hil_host::bus::{
+use jointlab_can::bus::embedded_can::{self, ExtendedId, StandardId};
+use jointlab_can::bus::socketcan_bus::sys::{self, Socket, SocketOptions};
+use jointlab_can::bus::{
     fault::ctrl, open_bus, BusError, BusFault, CanBus, ClassicFrame, Direction, FaultCause,
     InprocHub, SocketCanBus,
 };
-use hil_host::candump::{read_log, CandumpWriter, LoggedFrame, Timestamp};
+use jointlab_can::candump::{read_log, CandumpWriter, LoggedFrame, Timestamp};
 
 const IFACE: &str = "vcan0";
 const T: Duration = Duration::from_secs(2);
@@ -158,7 +158,7 @@ fn vcan_error_frames_enabled_and_decoded() {
     let marker = ClassicFrame::std(0x77, &[7]).unwrap();
     a.send(&marker).unwrap();
     let got = plain.read_frame().unwrap();
-    let got: ClassicFrame = hil_host::bus::convert(&got).unwrap();
+    let got: ClassicFrame = jointlab_can::bus::convert(&got).unwrap();
     assert_eq!(got, marker);
     assert_eq!(b.recv_timeout(T).unwrap(), Some(marker));
     say("vcan_error_frames_enabled_and_decoded: error frames delivered and decoded");
@@ -457,7 +457,7 @@ fn vcan_candump_tool_output_parses() {
         .iter()
         .enumerate()
         .map(|(i, l)| {
-            hil_host::candump::parse_line(l, i + 1)
+            jointlab_can::candump::parse_line(l, i + 1)
                 .unwrap()
                 .unwrap()
                 .frame

@@ -15,8 +15,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use controller::proto::{FaultCode, Message};
-use hil_host::bus::SocketCanBus;
-use hil_host::candump::{read_log, LoggedFrame};
+use jointlab_can::bus::SocketCanBus;
+use jointlab_can::candump::{read_log, LoggedFrame};
 
 const IFACE: &str = "vcan0";
 

@@ -11,8 +11,6 @@ use controller::proto::{Message, Mode, NodeId};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
-use crate::bus::{open_bus, BusSpec, CanBus, Impaired, InprocHub, LinkClock, LinkStats};
-use crate::candump::{read_log_skipping, LoggedFrame};
 use crate::lab::card_node::CardNode;
 use crate::lab::gains;
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
@@ -27,6 +25,8 @@ use crate::lab::supervisor::{Event, Phase, Supervisor};
 use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantLoop, PlantStats};
 use crate::lab::trajectory::Trajectory;
 use crate::lab::{Lab, LabOptions};
+use jointlab_can::bus::{open_bus, BusSpec, CanBus, Impaired, InprocHub, LinkClock, LinkStats};
+use jointlab_can::candump::{read_log_skipping, LoggedFrame};
 
 /// What `--inject` takes, for the help texts.
 pub const INJECT_HELP: &str = "Faults (--inject, repeatable; T and D in seconds of run time):

@@ -81,7 +81,7 @@ fn exit_code(e: &anyhow::Error) -> u8 {
             || c.is::<jointlab_workbench::model::ModelError>()
             || c.is::<jointlab_workbench::fit::FitError>()
             || c.is::<sim_plant::model::ModelError>()
-            || c.is::<crate::candump::LogError>()
+            || c.is::<jointlab_can::candump::LogError>()
     });
     if data {
         1

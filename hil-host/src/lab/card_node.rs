@@ -10,7 +10,7 @@ use controller::card::node::CardNode as Node;
 use controller::card::{Card, ConfigError};
 use controller::proto::{Message, NodeId};
 
-use crate::bus::{BusFault, ClassicFrame, Severity};
+use jointlab_can::bus::{BusFault, ClassicFrame, Severity};
 
 /// What to send after handling one frame.
 #[derive(Debug, Default)]

@@ -20,8 +20,8 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 
-use crate::bus::fault::{class, ctrl, prot};
-use crate::bus::{BusFault, FaultCause, LinkFault};
+use jointlab_can::bus::fault::{class, ctrl, prot};
+use jointlab_can::bus::{BusFault, FaultCause, LinkFault};
 
 /// Error frames `--inject` can put on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

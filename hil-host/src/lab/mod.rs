@@ -43,7 +43,9 @@ use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::{Message, NodeId};
 use sim_plant::{Model, Plant, PlantOptions};
 
-use crate::bus::{BusError, CanBus, ClassicFrame, Impaired, InprocBus, InprocHub, LinkClock};
+use jointlab_can::bus::{
+    BusError, CanBus, ClassicFrame, Impaired, InprocBus, InprocHub, LinkClock,
+};
 
 use card_node::CardNode;
 use inject::{BusEvent, FaultPlan, Node};

@@ -12,7 +12,7 @@ use controller::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB
 use controller::proto::{Actuator, Message, NodeId, OutputEncoder, Sensor};
 use sim_plant::{Plant, Sensors as PlantSensors, TrueState};
 
-use crate::bus::ClassicFrame;
+use jointlab_can::bus::ClassicFrame;
 
 /// The plant on the bus.
 #[derive(Debug)]

@@ -25,8 +25,8 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::NodeId;
 
-use crate::bus::slcan::REPLY_TIMEOUT;
-use crate::bus::{BusError, CanBus, ClassicFrame, SlcanBus};
+use jointlab_can::bus::slcan::REPLY_TIMEOUT;
+use jointlab_can::bus::{BusError, CanBus, ClassicFrame, SlcanBus};
 
 /// Rust target of the PIL image (mps2-an386 is a Cortex-M4F).
 pub const TARGET: &str = "thumbv7em-none-eabihf";

@@ -23,8 +23,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::scale::{self, MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};
 use controller::proto::{FaultCode, Message, NodeId, State};
 
-use crate::bus::{BusFault, ClassicFrame};
-use crate::candump::{CandumpWriter, Timestamp};
+use jointlab_can::bus::{BusFault, ClassicFrame};
+use jointlab_can::candump::{CandumpWriter, Timestamp};
 
 use super::inject::BusEvent;
 use super::plant_node::PlantNode;

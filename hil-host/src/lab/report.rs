@@ -16,7 +16,7 @@ use controller::proto::params as p;
 use controller::proto::{FaultCode, State};
 use serde_json::{json, Value};
 
-use crate::bus::LinkStats;
+use jointlab_can::bus::LinkStats;
 
 use super::inject::{BusEvent, Node};
 use super::recorder::{SeenFault, Tally};

@@ -16,7 +16,7 @@ use controller::proto::{
     ParamWrite, ReplyTo, SetChecksum, SetpointForce, SetpointMotion, State,
 };
 
-use crate::bus::BusFault;
+use jointlab_can::bus::BusFault;
 
 use super::gains::JointScale;
 use super::inject::{BusEvent, Window};

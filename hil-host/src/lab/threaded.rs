@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Result};
 use controller::proto::{Kind, Message, NodeId};
 
-use crate::bus::{BusError, CanBus, ClassicFrame, InprocHub};
+use jointlab_can::bus::{BusError, CanBus, ClassicFrame, InprocHub};
 
 use super::card_node::{kind_of, CardNode};
 use super::inject::{BusEvent, FaultPlan};
@@ -81,8 +81,8 @@ impl PlantStats {
 
 fn account(stats: &mut PlantStats, f: &ClassicFrame) {
     stats.frames += 1;
-    stats.exact_bits += u64::from(crate::bus::bits::exact_bits(f));
-    stats.worst_bits += u64::from(crate::bus::bits::worst_case_bits_of(f));
+    stats.exact_bits += u64::from(jointlab_can::bus::bits::exact_bits(f));
+    stats.worst_bits += u64::from(jointlab_can::bus::bits::worst_case_bits_of(f));
 }
 
 /// Tick-start lateness in 10 µs bins up to 100 ms (and one bin beyond): p50/p99 to 10 µs,
@@ -368,7 +368,7 @@ fn fault_seen(
     st: &mut PlantStats,
     recorder: &mut Recorder,
     t: f64,
-    fault: &crate::bus::BusFault,
+    fault: &jointlab_can::bus::BusFault,
 ) -> Result<()> {
     if let Some(c) = BusEvent::classify(fault) {
         *st.bus_faults.entry(c).or_default() += 1;
@@ -427,7 +427,7 @@ pub fn run_card(
                 // The bus itself failed: the card can no longer hear its sensors or its
                 // supervisor. Safe state first (a real card would also cut its power stage
                 // here through `power_stage`), then report.
-                card.on_bus_fault(&crate::bus::BusFault::bus_off());
+                card.on_bus_fault(&jointlab_can::bus::BusFault::bus_off());
                 return Err(anyhow!("card bus failed: {e}"));
             }
         }

@@ -7,7 +7,7 @@
 use std::io::Write;
 use std::time::Duration;
 
-use hil_host::bus::{open_bus, ClassicFrame};
+use jointlab_can::bus::{open_bus, ClassicFrame};
 
 fn run(spec: &str, count: u64) -> Result<u64, String> {
     let mut bus = open_bus(spec).map_err(|e| e.to_string())?;

@@ -7,7 +7,7 @@
 
 #[cfg(target_os = "linux")]
 fn up(name: &str) -> Result<String, String> {
-    use hil_host::bus::socketcan_bus::sys::CanInterface;
+    use jointlab_can::bus::socketcan_bus::sys::CanInterface;
     let (iface, created) = match CanInterface::open(name) {
         Ok(i) => (i, false),
         Err(_) => (

@@ -85,13 +85,13 @@ use std::f64::consts::TAU;
 
 use controller::proto::scale::MOTOR_TORQUE_NM_PER_LSB;
 use controller::proto::{Message, Mode, NodeId};
-use hil_host::bus::{CanBus, InprocBus, InprocHub};
 use hil_host::lab::card_node::CardNode;
 use hil_host::lab::gains::{self, GainSet, JointScale};
 use hil_host::lab::plant_node::PlantNode;
 use hil_host::lab::recorder::Recorder;
 use hil_host::lab::supervisor::{fault_words, Event, Phase, Supervisor, Target};
 use hil_host::lab::trajectory::Trajectory;
+use jointlab_can::bus::{CanBus, InprocBus, InprocHub};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -613,7 +613,7 @@ fn send(bus: &mut InprocBus, node: NodeId, m: &Message) -> Result<(), String> {
     bus.send(&f).map_err(|e| format!("bus: {e}"))
 }
 
-fn recv(bus: &mut InprocBus) -> Result<Option<hil_host::bus::ClassicFrame>, String> {
+fn recv(bus: &mut InprocBus) -> Result<Option<jointlab_can::bus::ClassicFrame>, String> {
     bus.try_recv().map_err(|e| format!("bus: {e}"))
 }
 
@@ -1198,7 +1198,7 @@ mod tests {
                     drive: true,
                     fault: false,
                 };
-                let f: hil_host::bus::ClassicFrame = Message::Actuator(a).encode(node).unwrap();
+                let f: jointlab_can::bus::ClassicFrame = Message::Actuator(a).encode(node).unwrap();
                 p.on_frame(&f);
             }
             whole.advance();

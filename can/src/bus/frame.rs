@@ -220,7 +220,7 @@ mod tests {
         assert_eq!(r, s);
     }
 
-    #[cfg(target_os = "linux")]
+    #[cfg(all(target_os = "linux", feature = "socketcan"))]
     #[test]
     fn convert_to_and_from_socketcan() {
         use socketcan::CanFrame;

@@ -401,6 +401,16 @@ pub enum BusError {
         /// The interface name that was asked for.
         iface: String,
     },
+    /// A SocketCAN interface was asked for, but this build has no SocketCAN transport
+    /// (jointlab-can without its `socketcan` feature).
+    #[error(
+        "cannot open CAN interface `{iface}`: this build has no SocketCAN transport \
+         (jointlab-can's `socketcan` feature is off); use --bus inproc or slcan:…"
+    )]
+    SocketCanNotBuilt {
+        /// The interface name that was asked for.
+        iface: String,
+    },
     /// The controller reported a fault (a CAN error frame was received).
     #[error("bus fault on `{bus}`: {fault}")]
     Fault {
@@ -551,7 +561,7 @@ mod tests {
     }
 
     /// Our decoder agrees with socketcan's on every single class bit and the detail bytes.
-    #[cfg(target_os = "linux")]
+    #[cfg(all(target_os = "linux", feature = "socketcan"))]
     #[test]
     fn agrees_with_socketcan_decoder() {
         use socketcan::CanErrorFrame;

@@ -1,6 +1,6 @@
 //! Frame round trips on the in-process bus, and the cost of exact bit-length accounting.
 //!
-//! `cargo bench -p hil-host --bench bus_inproc` (criterion; "thrpt" = round trips/s).
+//! `cargo bench -p jointlab-can --bench bus_inproc` (criterion; "thrpt" = round trips/s).
 //! * `same_thread`: a.send → b.recv → b.send → a.recv in one thread (transport cost only).
 //! * `ping_pong_thread`: a sends, an echo thread on b answers, a waits (includes two thread
 //!   wake-ups per round trip: the lockstep case of card and plant on separate threads).
@@ -10,7 +10,7 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use hil_host::bus::{bits, CanBus, ClassicFrame, InprocHub};
+use jointlab_can::bus::{bits, CanBus, ClassicFrame, InprocHub};
 
 const T: Duration = Duration::from_secs(5);
 

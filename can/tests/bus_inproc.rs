@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use hil_host::bus::{open_bus, CanBus, ClassicFrame, InprocHub};
-use hil_host::candump::{CandumpReader, CandumpWriter, LoggedFrame, Timestamp};
+use jointlab_can::bus::{open_bus, CanBus, ClassicFrame, InprocHub};
+use jointlab_can::candump::{CandumpReader, CandumpWriter, LoggedFrame, Timestamp};
 
 const SENSOR: u16 = 0x080;
 const ACTUATOR: u16 = 0x081;
@@ -13,7 +13,7 @@ const TICKS: u32 = 1000;
 const T: Duration = Duration::from_secs(5);
 
 /// Runs one lockstep session on hub `name`; returns the recorder's candump log.
-fn session(name: &str) -> (String, hil_host::bus::BusStats) {
+fn session(name: &str) -> (String, jointlab_can::bus::BusStats) {
     let spec = format!("inproc:{name}");
     let mut recorder = open_bus(&spec).unwrap();
     let mut plant = open_bus(&spec).unwrap();

@@ -7,8 +7,8 @@
 //!   `embedded_can::blocking::Can` for code written against that trait.
 //! * [`InprocHub`]/[`InprocBus`]: an in-process broadcast bus with bus-load accounting.
 //! * [`Impaired`]: any node's receive side with injected losses, delays and jitter.
-//! * [`SocketCanBus`] (Linux): `socketcan::CanSocket` with error frames decoded into
-//!   [`BusFault`]s.
+//! * `SocketCanBus` (Linux, feature `socketcan`): `socketcan::CanSocket` with error frames
+//!   decoded into [`BusFault`]s.
 //! * [`SlcanBus`]: a node behind a serial line speaking SLCAN (a USB adapter, or the
 //!   firmware's QEMU image on a socket).
 //! * [`open_bus`]: `"inproc"`/`"mem"` (optionally `":name"`), `"slcan:…"`, or an interface
@@ -25,7 +25,7 @@ pub mod frame;
 pub mod impair;
 pub mod inproc;
 pub mod slcan;
-#[cfg(target_os = "linux")]
+#[cfg(all(target_os = "linux", feature = "socketcan"))]
 pub mod socketcan_bus;
 
 use std::time::Duration;
@@ -33,7 +33,7 @@ use std::time::Duration;
 /// Re-export, so users of this module name the same `embedded-can` version.
 pub use embedded_can;
 
-#[cfg(target_os = "linux")]
+#[cfg(all(target_os = "linux", feature = "socketcan"))]
 pub use self::socketcan_bus::SocketCanBus;
 pub use fault::{BusError, BusFault, Direction, FaultCause, Severity, VCAN_HOWTO};
 pub use frame::{convert, ClassicFrame};
@@ -200,8 +200,10 @@ impl BusSpec {
 pub fn open_bus(spec: &str) -> Result<Box<dyn CanBus>, BusError> {
     match BusSpec::parse(spec)? {
         BusSpec::Inproc(name) => Ok(Box::new(InprocHub::named(&name).attach(spec.trim()))),
-        #[cfg(target_os = "linux")]
+        #[cfg(all(target_os = "linux", feature = "socketcan"))]
         BusSpec::SocketCan(iface) => Ok(Box::new(SocketCanBus::open(&iface)?)),
+        #[cfg(all(target_os = "linux", not(feature = "socketcan")))]
+        BusSpec::SocketCan(iface) => Err(BusError::SocketCanNotBuilt { iface }),
         #[cfg(not(target_os = "linux"))]
         BusSpec::SocketCan(iface) => Err(BusError::NoCanSupport { iface }),
         BusSpec::Slcan(t) => Ok(Box::new(SlcanBus::open(&t)?)),
