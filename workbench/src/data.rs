@@ -134,6 +134,21 @@ pub enum DataError {
         /// Not finite, or its square overflows.
         why: &'static str,
     },
+    /// A noise statistic of the record (what the significance tests measure a residual
+    /// against) is not finite: the differences of the values overflow even where the values
+    /// and their derivatives do not.
+    #[error(
+        "{file}: the {statistic} is {value:e}: the position or input jumps by an amount out of \
+         scale (a cell out of scale, or a wrong unit or gain)"
+    )]
+    Noise {
+        /// File.
+        file: PathBuf,
+        /// Which statistic (`acceleration noise variance`, …).
+        statistic: &'static str,
+        /// Its value.
+        value: f64,
+    },
     /// The sample interval is not uniform (a gap, or a jump in the clock).
     #[error(
         "{file}:{line}: column `{column}`: the sample interval {step} s is far from the \

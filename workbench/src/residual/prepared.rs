@@ -177,20 +177,54 @@ impl Prepared {
             }
         }
         let p = Self::new(rec, cutoff_hz);
-        for (signal, x) in [
-            ("input after the intersample filter", &p.input),
-            ("position after smoothing", &p.position),
-            ("velocity after differentiation", &p.velocity),
-            ("acceleration after differentiation", &p.acceleration),
-            ("load position after smoothing", &p.load_position),
+        // Each signal with the clock it is indexed by (the raw ones span the whole record).
+        for (signal, x, time) in [
+            ("input after the intersample filter", &p.input, &p.time),
+            ("position after smoothing", &p.position, &p.time),
+            ("velocity after differentiation", &p.velocity, &p.time),
+            (
+                "acceleration after differentiation",
+                &p.acceleration,
+                &p.time,
+            ),
+            (
+                "acceleration at the record's edges",
+                &p.raw_acceleration,
+                &rec.time,
+            ),
+            ("load position after smoothing", &p.load_position, &p.time),
+            (
+                "input reconstructed from the motion",
+                &p.input_instrument,
+                &p.time,
+            ),
         ] {
             if let Some((k, why)) = super::super::data::out_of_range(x) {
                 return Err(PrepareError::Data(DataError::Derived {
                     file: rec.path.clone(),
                     signal,
-                    time: p.time.get(k).copied().unwrap_or(f64::NAN),
+                    time: time.get(k).copied().unwrap_or(f64::NAN),
                     value: x[k],
                     why,
+                }));
+            }
+        }
+        for (statistic, value) in [
+            ("input noise floor", p.noise_floor),
+            ("input noise variance", p.input_noise_var),
+            ("position noise variance", p.position_noise_var),
+            ("acceleration noise variance", p.acceleration_noise_var),
+            (
+                "load acceleration noise variance",
+                p.load_acceleration_noise_var,
+            ),
+            ("stick velocity", p.stick_velocity),
+        ] {
+            if !value.is_finite() {
+                return Err(PrepareError::Data(DataError::Noise {
+                    file: rec.path.clone(),
+                    statistic,
+                    value,
                 }));
             }
         }
