@@ -11,8 +11,21 @@ dataclasses (``to_json()`` gives the CLI's object back). A recording is given as
 * a CSV path and column names, read by the CLI's own loader.
 
 Models load and save as the model TOML the CLI's ``--model`` and ``--save-model`` use
-(``Model.load``, ``Model.save``, ``Model.from_toml``, ``Model.to_toml``). Bad input raises
-``ValueError`` with the workbench's message, naming the argument or column and where.
+(``Model.load``, ``Model.save``, ``Model.from_toml``, ``Model.to_toml``).
+
+Errors carry the workbench's message, naming what is wrong and where (the file or
+``<arrays>``, the line or 0-based index, the column). They are all ``ValueError``:
+
+* :class:`DataError` — the recording (a missing column, a value not finite or out of range
+  after its unit and gains, time not increasing, too few rows, a signal out of range after
+  differentiation),
+* :class:`ModelError` — a model file or text (does not parse, cannot be fitted, or a fitted
+  model no file can hold),
+* :class:`FitError` — a fit that cannot be made (too few samples, nothing free, overflow),
+
+all three subclasses of :class:`JointlabError`: what the CLI exits 1 for. An argument the
+call cannot use (``alpha=2``, a ``cutoff`` above the record's Nyquist frequency, an unknown
+effect name) raises a plain ``ValueError``, the CLI's usage error (exit 2).
 """
 
 from __future__ import annotations
@@ -26,9 +39,13 @@ from typing import Any, Optional, Sequence
 import numpy as np
 
 from . import _jointlab
-from ._jointlab import Model, Recording
+from ._jointlab import DataError, FitError, JointlabError, Model, ModelError, Recording
 
 __all__ = [
+    "JointlabError",
+    "DataError",
+    "ModelError",
+    "FitError",
     "Model",
     "Recording",
     "recording",
@@ -275,8 +292,10 @@ def _is_frame(x: Any) -> bool:
 
 
 def _column(df: Any, name: str) -> list:
+    """The DataFrame's column ``name`` as floats; a :class:`DataError` if it has none, as the
+    CSV loader's for a missing column."""
     if name not in df.columns:
-        raise ValueError(
+        raise DataError(
             f"DataFrame: no column `{name}` (have: {', '.join(map(str, df.columns))})"
         )
     return _array(f"DataFrame column `{name}`", df[name].to_numpy())

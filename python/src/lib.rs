@@ -3,11 +3,17 @@
 //! Each function calls the library functions the `hil-host` CLI calls for the same command,
 //! and returns the JSON object the CLI's `--json` prints (as text; the pure-Python package
 //! `jointlab` turns it into dataclasses). Nothing here computes a figure of its own, so the
-//! numbers are the CLI's. Every error — a bad array, a bad argument, a model file that does
-//! not parse, a fit that fails — is a `ValueError` carrying the workbench's message.
+//! numbers are the CLI's.
+//!
+//! Errors carry the workbench's message, which names what is wrong and where (file or
+//! `<arrays>`, line or index, column). What the data, a model file or a fit holds raises a
+//! subclass of [`JointlabError`] (itself a `ValueError`) by the workbench's error type, the
+//! cases the CLI exits 1 for; an argument the call cannot use raises a plain `ValueError`,
+//! the CLI's usage error (exit 2).
 
 use std::path::PathBuf;
 
+use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::json;
@@ -15,14 +21,62 @@ use sim_plant::effects::{EffectKind, Intersample};
 
 use jointlab_workbench::data::{self, Arrays, Columns};
 use jointlab_workbench::diagnose::{self, Options};
+use jointlab_workbench::fit;
 use jointlab_workbench::metrics;
 use jointlab_workbench::model;
 use jointlab_workbench::refine;
-use jointlab_workbench::residual::{self, Mode, Prepared};
+use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
 
-/// Any workbench error as a Python `ValueError` with its message.
+create_exception!(
+    jointlab,
+    JointlabError,
+    PyValueError,
+    "What a recording, a model file or a fit holds is wrong (the CLI's exit 1)."
+);
+create_exception!(
+    jointlab,
+    DataError,
+    JointlabError,
+    "A recording or its arrays: a missing column, a value that is not finite or out of \
+     range, a time that does not increase, a record too short, a signal out of range after \
+     differentiation."
+);
+create_exception!(
+    jointlab,
+    ModelError,
+    JointlabError,
+    "A model file or text that does not parse, a model the workbench cannot fit, or a fitted \
+     model that no model file can hold."
+);
+create_exception!(
+    jointlab,
+    FitError,
+    JointlabError,
+    "A fit that cannot be made: too few samples, nothing free, a result that overflowed."
+);
+
+/// A bad argument as a plain Python `ValueError` (the CLI's usage error).
 fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// A recording's error as [`DataError`].
+fn data_error(e: data::DataError) -> PyErr {
+    DataError::new_err(e.to_string())
+}
+
+/// A model file's error as [`ModelError`].
+fn model_error(e: model::ModelError) -> PyErr {
+    ModelError::new_err(e.to_string())
+}
+
+/// A fit's error as [`FitError`], after `context` when there is one.
+fn fit_error(context: &str, e: fit::FitError) -> PyErr {
+    if context.is_empty() {
+        FitError::new_err(e.to_string())
+    } else {
+        FitError::new_err(format!("{context}: {e}"))
+    }
 }
 
 /// `value` of argument `name` unless it is finite (and above 0 when `positive`).
@@ -36,6 +90,18 @@ fn check(name: &str, value: f64, positive: bool) -> PyResult<f64> {
     } else {
         Err(value_error(format!(
             "{name}={value}: must be a finite number"
+        )))
+    }
+}
+
+/// A gain (`input_gain`, `load_gain`) unless it is not finite or 0: a NaN or infinite gain
+/// would reach the fit as NaN, and a zero one erases the column (as the CLI's flags).
+fn gain(name: &str, value: f64) -> PyResult<f64> {
+    if value.is_finite() && value != 0.0 {
+        Ok(value)
+    } else {
+        Err(value_error(format!(
+            "{name}={value}: must be a finite number other than 0"
         )))
     }
 }
@@ -78,7 +144,7 @@ impl Model {
     fn load(path: PathBuf) -> PyResult<Self> {
         model::Model::load(&path)
             .map(|inner| Model { inner })
-            .map_err(value_error)
+            .map_err(model_error)
     }
 
     /// Parse model TOML text; `name` labels it in errors.
@@ -87,17 +153,17 @@ impl Model {
     fn from_toml(text: &str, name: &str) -> PyResult<Self> {
         model::Model::from_toml_str(text, name)
             .map(|inner| Model { inner })
-            .map_err(value_error)
+            .map_err(model_error)
     }
 
     /// The TOML text `save` writes (refused, with why, if a parameter is not physical).
     fn to_toml(&self) -> PyResult<String> {
-        self.inner.to_toml_string("<toml>").map_err(value_error)
+        self.inner.to_toml_string("<toml>").map_err(model_error)
     }
 
     /// Write the model TOML file.
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        self.inner.save(&path).map_err(value_error)
+        self.inner.save(&path).map_err(model_error)
     }
 
     /// The model's name (what it holds).
@@ -158,8 +224,8 @@ fn columns(
         output,
         load_output,
         input_times,
-        input_gain: check("input_gain", input_gain, false)?,
-        load_gain: check("load_gain", load_gain, false)?,
+        input_gain: gain("input_gain", input_gain)?,
+        load_gain: gain("load_gain", load_gain)?,
         window,
         intersample: intersample
             .parse::<Intersample>()
@@ -202,7 +268,7 @@ impl Recording {
         )?;
         data::load(&path, &cols)
             .map(|inner| Recording { inner })
-            .map_err(value_error)
+            .map_err(data_error)
     }
 
     /// Build one from arrays; the names label the arrays (and give their units by suffix,
@@ -250,7 +316,7 @@ impl Recording {
         };
         data::Recording::from_arrays(arrays, &cols)
             .map(|inner| Recording { inner })
-            .map_err(value_error)
+            .map_err(data_error)
     }
 
     /// Number of samples.
@@ -297,18 +363,39 @@ impl Recording {
     }
 }
 
-/// The recording differentiated (the CLI's `--cutoff` check included).
+/// The recording differentiated, with the CLI's checks: a cut-off the record cannot carry
+/// is a bad argument, a signal out of range after differentiation a [`DataError`].
 fn prepared(rec: &Recording, cutoff: Option<f64>) -> PyResult<Prepared> {
-    Prepared::checked(&rec.inner, cutoff).map_err(value_error)
+    Prepared::checked(&rec.inner, cutoff).map_err(|e| match e {
+        PrepareError::Cutoff(e) => value_error(e),
+        PrepareError::Data(e) => data_error(e),
+    })
+}
+
+/// A [`FitError`] unless the score's fit % and RMS are finite (a NaN score would read as
+/// "nothing missing").
+fn finite_score(rec: &Recording, fit_percent: f64, rms: f64) -> PyResult<()> {
+    for (what, value) in [("fit %", fit_percent), ("RMS", rms)] {
+        if !value.is_finite() {
+            let e = fit::FitError::NonFiniteScore {
+                what,
+                record: "estimation",
+                value,
+            };
+            return Err(fit_error(&rec.inner.path.display().to_string(), e));
+        }
+    }
+    Ok(())
 }
 
 /// `model` (or the baseline) with its free parameters fitted to `p`, as `diagnose` starts.
-fn fitted(m: Option<&Model>, p: &Prepared) -> PyResult<model::Model> {
+fn fitted(rec: &Recording, m: Option<&Model>, p: &Prepared) -> PyResult<model::Model> {
     let mut m = m.map_or_else(model::Model::baseline, |m| m.inner.clone());
     if m.params().iter().any(|q| q.free) {
-        refine::refit_all(&mut m, p)
-            .map_err(|e| value_error(format!("fitting the free parameters: {e}")))?;
+        refine::refit_all(&mut m, p).map_err(|e| fit_error("fitting the free parameters", e))?;
     }
+    let s = refine::score(&m, p);
+    finite_score(rec, s.fit_percent, s.rms)?;
     Ok(m)
 }
 
@@ -327,7 +414,7 @@ fn py_diagnose(
     let opts = options(alpha, min_err, min_rho)?;
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
-        let m = fitted(model, &p)?;
+        let m = fitted(rec, model, &p)?;
         let mut j = diagnose::diagnose(&m, &p, &opts).to_json();
         j["resampled"] = json!(rec.inner.resampled);
         Ok(j.to_string())
@@ -353,9 +440,10 @@ fn py_auto(
     let opts = options(alpha, min_err, min_rho)?;
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
-        let mut m = fitted(model, &p)?;
+        let mut m = fitted(rec, model, &p)?;
         let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
-        let run = refine::auto(&mut m, &p, val.as_ref(), &opts, max_steps).map_err(value_error)?;
+        let run = refine::auto(&mut m, &p, val.as_ref(), &opts, max_steps)
+            .map_err(|e| fit_error("", e))?;
         let j = json!({
             "residual_mode": run.last.residual_mode,
             "steps": run.steps,
@@ -406,7 +494,7 @@ fn py_fit(
                 "validation": val.as_ref().map(|v| refine::score(&m, v)),
             })
         });
-        let r = refine::fit_add(&mut m, &p, kind, val.as_ref()).map_err(value_error)?;
+        let r = refine::fit_add(&mut m, &p, kind, val.as_ref()).map_err(|e| fit_error("", e))?;
         let j = json!({
             "report": r,
             "as_given": as_given,
@@ -444,7 +532,7 @@ fn py_compare(
         let p = prepared(rec, cutoff)?;
         let m = match (model, refit) {
             (Some(m), false) => m.inner.clone(),
-            _ => fitted(model, &p)?,
+            _ => fitted(rec, model, &p)?,
         };
         let res = match mode {
             Mode::Equation => residual::equation_error(&m, &p),
@@ -458,8 +546,10 @@ fn py_compare(
                 res.time.get(k).copied().unwrap_or(f64::NAN)
             )));
         }
+        let metrics = metrics::compute(&res, period);
+        finite_score(rec, metrics.fit_percent, metrics.rms)?;
         let j = json!({
-            "metrics": metrics::compute(&res, period),
+            "metrics": metrics,
             "params": refine::param_rows(&m),
             "report": null,
             "resampled": rec.inner.resampled,
@@ -477,6 +567,11 @@ fn py_compare(
 /// The extension module.
 #[pymodule]
 fn _jointlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("JointlabError", py.get_type::<JointlabError>())?;
+    m.add("DataError", py.get_type::<DataError>())?;
+    m.add("ModelError", py.get_type::<ModelError>())?;
+    m.add("FitError", py.get_type::<FitError>())?;
     m.add_class::<Model>()?;
     m.add_class::<Recording>()?;
     m.add_function(wrap_pyfunction!(py_diagnose, m)?)?;

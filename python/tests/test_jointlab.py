@@ -1,8 +1,10 @@
 """The Python package against the CLI: the EMPS walk-through (README, docs/workbench.md) run
 from Python gives the numbers `hil-host ... --json` prints, run here on the same files; a
 DataFrame, arrays and a CSV path give one answer; models round-trip through TOML; bad input
-raises ValueError naming what and where."""
+raises a ValueError of its kind (DataError, ModelError, FitError, or a plain one for a bad
+argument) naming what and where."""
 
+import contextlib
 import json
 import math
 import os
@@ -199,41 +201,70 @@ def test_a_fitted_model_round_trips_through_toml_and_diagnoses_from_there(tmp_pa
     assert d.baseline.fit_percent > jointlab.diagnose(t, u, q).baseline.fit_percent
 
 
-def test_bad_input_raises_value_error_naming_it():
+@contextlib.contextmanager
+def usage_error(match):
+    """A plain ``ValueError`` (a bad argument, the CLI's exit 2), not a ``JointlabError``."""
+    with pytest.raises(ValueError, match=match) as info:
+        yield
+    assert not isinstance(info.value, jointlab.JointlabError), repr(info.value)
+
+
+def test_bad_input_raises_the_error_of_its_kind_naming_it():
     t, u, q = synthetic(500)
     bad = u.copy()
     bad[17] = np.nan
-    with pytest.raises(ValueError, match=r"<arrays>:17: column `input`: value is NaN"):
+    # What the data holds: DataError (a ValueError), naming the array and the index.
+    assert issubclass(jointlab.DataError, jointlab.JointlabError)
+    assert issubclass(jointlab.JointlabError, ValueError)
+    with pytest.raises(jointlab.DataError, match=r"<arrays>:17: column `input`: value is NaN"):
         jointlab.diagnose(t, bad, q)
-    with pytest.raises(ValueError, match=r"`output` holds 499 values, `time` 500"):
+    with pytest.raises(jointlab.DataError, match=r"`output` holds 499 values, `time` 500"):
         jointlab.diagnose(t, u, q[:-1])
-    with pytest.raises(ValueError, match=r"u: a 1-D array is needed"):
-        jointlab.diagnose(t, np.stack([u, u]), q)
-    with pytest.raises(ValueError, match=r"time 0\.01 does not increase"):
+    with pytest.raises(jointlab.DataError, match=r"time 0\.01 does not increase"):
         jointlab.diagnose(np.where(np.arange(500) == 11, 0.01, t), u, q)
-    with pytest.raises(ValueError, match=r"only 10 data rows; need at least 50"):
+    with pytest.raises(jointlab.DataError, match=r"only 10 data rows; need at least 50"):
         jointlab.diagnose(t[:10], u[:10], q[:10])
-    with pytest.raises(ValueError, match=r"unknown effect; known: .*coulomb"):
+    # Finite cells out of range once scaled, or once differentiated: named, not a NaN fit.
+    with pytest.raises(jointlab.DataError, match=r"<arrays>:\d+: column `input`: .*out of range"):
+        jointlab.diagnose(t, u * 1e200, q)
+    jump = q.copy()
+    jump[250] = 1e152
+    with pytest.raises(jointlab.DataError, match=r"velocity after differentiation|position after"):
+        jointlab.diagnose(t, u, jump)
+    with pytest.raises(jointlab.DataError, match=r"column `output_km`: unknown unit suffix `_km`"):
+        jointlab.diagnose(t, u, q, output="output_km")
+    # An argument the call cannot use: a plain ValueError, as the CLI's usage error.
+    with usage_error(r"u: a 1-D array is needed"):
+        jointlab.diagnose(t, np.stack([u, u]), q)
+    with usage_error(r"unknown effect; known: .*coulomb"):
         jointlab.fit(t, u, q, add="cowlomb")
-    with pytest.raises(ValueError, match=r"alpha=2"):
+    with usage_error(r"alpha=2"):
         jointlab.diagnose(t, u, q, alpha=2.0)
-    with pytest.raises(ValueError, match=r"input_gain=NaN: must be a finite number"):
+    with usage_error(r"input_gain=NaN: must be a finite number"):
         jointlab.diagnose(t, u, q, input_gain=float("nan"))
-    with pytest.raises(ValueError, match=r"--cutoff 600: .*Nyquist"):
+    with usage_error(r"input_gain=0: must be a finite number other than 0"):
+        jointlab.diagnose(t, u, q, input_gain=0.0)
+    with usage_error(r"--cutoff 600: .*Nyquist"):
         jointlab.diagnose(t, u, q, cutoff=600.0)
-    with pytest.raises(ValueError, match=r"intersample=\"hold\""):
+    with usage_error(r"intersample=\"hold\""):
         jointlab.diagnose(t, u, q, intersample="hold")
-    with pytest.raises(ValueError, match=r"<toml>:\d+:\d+"):
+    # A model file or text: ModelError, naming it and the line.
+    with pytest.raises(jointlab.ModelError, match=r"<toml>:\d+:\d+"):
         jointlab.Model.from_toml("[plant]\ninertia = \n")
-    with pytest.raises(ValueError, match=r"no such file|cannot read|No such file"):
+    with pytest.raises(jointlab.ModelError, match=r"no such file|cannot read|No such file"):
         jointlab.Model.load("/nonexistent/model.toml")
+    # A fit that cannot be made: FitError.
+    fitted = jointlab.fit(t, u, q).model.to_toml()
+    fixed = jointlab.Model.from_toml(fitted.replace("free = true", "free = false"))
+    with pytest.raises(jointlab.FitError, match=r"no free parameter"):
+        jointlab.fit(t, u, q, model=fixed)
 
 
 def test_a_dataframe_missing_a_column_or_holding_text_is_refused():
     pd = pytest.importorskip("pandas")
     t, u, q = synthetic(100)
     df = pd.DataFrame({"time_s": t, "force_N": u, "pos_m": q})
-    with pytest.raises(ValueError, match=r"no column `torque_Nm` \(have: time_s, force_N, pos_m\)"):
+    with pytest.raises(jointlab.DataError, match=r"no column `torque_Nm` \(have: time_s, force_N, pos_m\)"):
         jointlab.diagnose(df, input="torque_Nm", output="pos_m")
     df["pos_m"] = df["pos_m"].astype(object)
     df.loc[5, "pos_m"] = "n/a"
