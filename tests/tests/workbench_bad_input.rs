@@ -8,7 +8,7 @@ use jointlab_workbench::data::{self, Columns, DataError};
 use jointlab_workbench::fit::{self, FitError};
 use jointlab_workbench::model::{Model, ModelError, Unfittable};
 use jointlab_workbench::refine;
-use jointlab_workbench::residual::Prepared;
+use jointlab_workbench::residual::{PrepareError, Prepared};
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("jointlab-bad-{}-{name}", std::process::id()));
@@ -110,7 +110,10 @@ fn a_derivative_out_of_range_is_refused_after_differentiation() {
     let rec = data::load(&f, &cols()).expect("the cells themselves are in range");
     let e = Prepared::checked(&rec, None).expect_err("its derivatives are not");
     let text = e.to_string();
-    assert!(matches!(e, DataError::Derived { .. }), "{text}");
+    assert!(
+        matches!(e, PrepareError::Data(DataError::Derived { .. })),
+        "{text}"
+    );
     assert!(
         text.contains("jump.csv") && text.contains("after differentiation"),
         "{text}"

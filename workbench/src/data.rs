@@ -6,6 +6,10 @@
 //! where the unit is not SI, the factor that converts it (`_deg` → rad, `_mm` → m, `_ms` → s);
 //! a unit-like suffix that is not known is refused ([`crate::units`] holds the table and the
 //! rule). HIL recordings are named from the same table, so they load directly.
+//!
+//! Arrays (the Python package's numpy columns) come in through [`Recording::from_arrays`]:
+//! the CSV loader and it hand their columns to one constructor, so a record gets the same
+//! checks, window, resampling and noise statistics whichever way it arrived.
 
 use crate::units::{unit_of, UnknownUnit};
 use sim_plant::effects::Intersample;
@@ -13,9 +17,34 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 /// What went wrong while loading a recording. Every variant names the file, and where it can,
-/// the 1-based line (the header is line 1) and the column.
+/// the 1-based line (the header is line 1) and the column. A recording built from arrays
+/// ([`Recording::from_arrays`]) is named [`ARRAYS`] and its "line" is the 0-based index into
+/// the arrays.
 #[derive(Debug, Error)]
 pub enum DataError {
+    /// An array passed to [`Recording::from_arrays`] is not as long as the time array.
+    #[error("{file}: `{column}` holds {len} values, `{time}` {expected}: every array needs one value per sample")]
+    ArrayLength {
+        /// [`ARRAYS`].
+        file: PathBuf,
+        /// The array's name (its column name in [`Columns`]).
+        column: String,
+        /// Its length.
+        len: usize,
+        /// The time array's name.
+        time: String,
+        /// The time array's length.
+        expected: usize,
+    },
+    /// [`Columns`] names an optional column (`load_output`, `input_times`) that no array was
+    /// given for, or an array was given that [`Columns`] does not name.
+    #[error("{file}: {what}")]
+    ArrayMissing {
+        /// [`ARRAYS`].
+        file: PathBuf,
+        /// Which array, and which way round.
+        what: String,
+    },
     /// The file could not be opened or read.
     #[error("{file}: cannot read: {source}")]
     Io {
@@ -104,6 +133,21 @@ pub enum DataError {
         value: f64,
         /// Not finite, or its square overflows.
         why: &'static str,
+    },
+    /// A noise statistic of the record (what the significance tests measure a residual
+    /// against) is not finite: the differences of the values overflow even where the values
+    /// and their derivatives do not.
+    #[error(
+        "{file}: the {statistic} is {value:e}: the position or input jumps by an amount out of \
+         scale (a cell out of scale, or a wrong unit or gain)"
+    )]
+    Noise {
+        /// File.
+        file: PathBuf,
+        /// Which statistic (`acceleration noise variance`, …).
+        statistic: &'static str,
+        /// Its value.
+        value: f64,
     },
     /// The sample interval is not uniform (a gap, or a jump in the clock).
     #[error(
@@ -409,34 +453,130 @@ pub fn out_of_range(x: &[f64]) -> Option<(usize, &'static str)> {
 /// differentiator's trimmed edges leave too little to fit.
 const MIN_ROWS: usize = 50;
 
-/// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
-/// time with the file, line and column in the message.
-pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
-    let file = path.to_path_buf();
+/// The file label of a recording built from arrays ([`Recording::from_arrays`]).
+pub const ARRAYS: &str = "<arrays>";
+
+/// The columns a recording reads, in the order [`build`] takes them: time, input, output,
+/// then the load column and the `input_times` column when `cols` names them.
+fn column_names(cols: &Columns) -> Vec<&str> {
     let mut names = vec![
         cols.time.as_str(),
         cols.input.as_str(),
         cols.output.as_str(),
     ];
-    if let Some(c) = &cols.load_output {
-        names.push(c);
+    names.extend(cols.load_output.as_deref());
+    names.extend(cols.input_times.as_deref());
+    names
+}
+
+/// The arrays of a recording that is already in memory, as a CSV's columns would hold them:
+/// raw numbers, converted by the unit suffix of their name in [`Columns`] and by its gains.
+#[derive(Debug, Clone, Copy)]
+pub struct Arrays<'a> {
+    /// Time (named by [`Columns::time`]).
+    pub time: &'a [f64],
+    /// Input ([`Columns::input`]).
+    pub input: &'a [f64],
+    /// Output position ([`Columns::output`]).
+    pub output: &'a [f64],
+    /// Load-side position ([`Columns::load_output`]), if any.
+    pub load_output: Option<&'a [f64]>,
+    /// The input's row-by-row factor ([`Columns::input_times`]), if any.
+    pub input_times: Option<&'a [f64]>,
+}
+
+impl Recording {
+    /// A recording from arrays, with every check, the window, the resampling and the noise
+    /// statistics of [`load`]: both go through one constructor. `cols` names the arrays (for
+    /// reports, errors and the units of their suffixes) and carries the gains, window and
+    /// intersample behaviour. Errors name [`ARRAYS`], the array and its 0-based index.
+    pub fn from_arrays(arrays: Arrays<'_>, cols: &Columns) -> Result<Recording, DataError> {
+        let file = PathBuf::from(ARRAYS);
+        let pairs = [
+            ("load_output", &cols.load_output, arrays.load_output),
+            ("input_times", &cols.input_times, arrays.input_times),
+        ];
+        for (field, name, array) in pairs {
+            let what = match (name, array) {
+                (Some(n), None) => format!("Columns::{field} names `{n}` but no array was given"),
+                (None, Some(_)) => {
+                    format!("an array was given for {field} but Columns::{field} names none")
+                }
+                _ => continue,
+            };
+            return Err(DataError::ArrayMissing { file, what });
+        }
+        let given = [arrays.time, arrays.input, arrays.output]
+            .into_iter()
+            .chain(arrays.load_output)
+            .chain(arrays.input_times);
+        let names = column_names(cols);
+        let units = column_units(&file, &names)?;
+        let mut raw = Vec::with_capacity(names.len());
+        for (name, x) in names.iter().zip(given) {
+            if x.len() != arrays.time.len() {
+                return Err(DataError::ArrayLength {
+                    file,
+                    column: (*name).into(),
+                    len: x.len(),
+                    time: cols.time.clone(),
+                    expected: arrays.time.len(),
+                });
+            }
+            for (k, &v) in x.iter().enumerate() {
+                finite(&file, k as u64, name, v)?;
+            }
+            raw.push(x.to_vec());
+        }
+        build(
+            file,
+            raw,
+            (0..arrays.time.len() as u64).collect(),
+            &units,
+            cols,
+        )
     }
-    let times_at = cols.input_times.as_deref().map(|c| {
-        names.push(c);
-        names.len() - 1
-    });
-    // Every selected column's unit, before reading: one unit-like suffix the table does not
-    // know is refused rather than read at a factor of 1.
-    let units = names
+}
+
+/// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
+/// time with the file, line and column in the message.
+pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
+    let names = column_names(cols);
+    let units = column_units(path, &names)?;
+    let (raw, lines) = read_numeric(path, &names)?;
+    build(path.to_path_buf(), raw, lines, &units, cols)
+}
+
+/// Every selected column's unit and SI factor, in [`column_names`] order, before any value
+/// is read: a unit-like suffix the table does not know is refused rather than read at a
+/// factor of 1.
+fn column_units(file: &Path, names: &[&str]) -> Result<Vec<(&'static str, f64)>, DataError> {
+    names
         .iter()
         .map(|c| unit_of(c))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|source| DataError::UnknownUnit {
-            file: file.clone(),
+            file: file.to_path_buf(),
             source,
-        })?;
+        })
+}
+
+/// The one constructor of a [`Recording`]: `raw` holds the finite columns of
+/// [`column_names`] as recorded, `lines` where each row came from (for errors), `units`
+/// their [`column_units`]. Units, gains, the range checks after scaling, the time checks,
+/// the window, the sampling checks and the resampling happen here.
+fn build(
+    file: PathBuf,
+    raw: Vec<Vec<f64>>,
+    lines: Vec<u64>,
+    units: &[(&'static str, f64)],
+    cols: &Columns,
+) -> Result<Recording, DataError> {
+    let times_at = cols
+        .input_times
+        .as_ref()
+        .map(|_| 3 + usize::from(cols.load_output.is_some()));
     let factor = |k: usize| units.get(k).map_or(1.0, |u| u.1);
-    let (raw, lines) = read_numeric(path, &names)?;
     let ts = factor(0);
     let us = factor(1);
     let (yu, ys) = units.get(2).copied().unwrap_or(("", 1.0));
@@ -610,6 +750,21 @@ pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataEr
     read_numeric(path, names).map(|(cols, _)| cols)
 }
 
+/// `v` of `column` at `line` of `file`, refused if NaN or infinite: the one finiteness check
+/// of CSV cells and arrays.
+fn finite(file: &Path, line: u64, column: &str, v: f64) -> Result<(), DataError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(DataError::NotFinite {
+            file: file.to_path_buf(),
+            line,
+            column: column.into(),
+            value: v,
+        })
+    }
+}
+
 /// The named columns as finite numbers, with the CSV line of each row (for later errors).
 /// A missing column, a cell that is not a number, NaN or inf is an error naming the file,
 /// the line and the column.
@@ -663,14 +818,7 @@ fn read_numeric(path: &Path, names: &[&str]) -> Result<(Vec<Vec<f64>>, Vec<u64>)
                 column: (*name).into(),
                 cell: s.into(),
             })?;
-            if !v.is_finite() {
-                return Err(DataError::NotFinite {
-                    file: file.clone(),
-                    line,
-                    column: (*name).into(),
-                    value: v,
-                });
-            }
+            finite(&file, line, name, v)?;
             col.push(v);
         }
         lines.push(line);

@@ -241,17 +241,33 @@ impl Model {
         })
     }
 
+    /// [`Model::load`] from the file's text (the Python package's `Model.from_toml`); `file`
+    /// names it in errors.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Self, ModelError> {
+        let sim = sim_plant::Model::from_toml_str(text, file)?;
+        Self::from_sim(&sim).map_err(|source| ModelError::Unfittable {
+            file: file.into(),
+            source,
+        })
+    }
+
+    /// The text [`Model::save`] writes, checked the same way; `file` names it in errors.
+    pub fn to_toml_string(&self, file: &str) -> Result<String, ModelError> {
+        let text = self.to_sim().to_toml_string();
+        self.check_written(&text, file)
+            .map_err(|source| ModelError::NotPhysical {
+                file: file.into(),
+                source,
+            })?;
+        Ok(text)
+    }
+
     /// Save as a sim-plant model file. The text is parsed back first: a fit that left a
     /// parameter outside its physical range (a negative Coulomb level, say) is reported, naming
     /// the parameter, instead of writing a file that would not load.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let file = path.display().to_string();
-        let text = self.to_sim().to_toml_string();
-        self.check_written(&text, &file)
-            .map_err(|source| ModelError::NotPhysical {
-                file: file.clone(),
-                source,
-            })?;
+        let text = self.to_toml_string(&file)?;
         std::fs::write(path, text)
             .map_err(|source| sim_plant::model::ModelError::Io { file, source })?;
         Ok(())

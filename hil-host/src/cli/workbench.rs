@@ -13,7 +13,7 @@ use jointlab_workbench::metrics;
 use jointlab_workbench::model::Model;
 use jointlab_workbench::refine::{self, AutoStep, FitReport, Score};
 use jointlab_workbench::report::{self, Chart, Series};
-use jointlab_workbench::residual::{self, Mode, Prepared};
+use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
 
 /// Examples for `compare --help`.
 pub const COMPARE_EXAMPLES: &str = "Examples:
@@ -160,17 +160,13 @@ impl DataArgs {
         if let Some(r) = &rec.resampled {
             eprintln!("{}", r.note(file));
         }
-        if let Some(fc) = self.cutoff {
-            let nyquist = 0.5 / rec.dt;
-            if !(fc.is_finite() && fc > 0.0 && fc < nyquist) {
-                bail!(
-                    "--cutoff {fc}: the differentiator's cut-off must be above 0 and below the \
-                     Nyquist frequency of {} ({nyquist:.4} Hz)",
-                    file.display()
-                );
-            }
-        }
-        Ok((Prepared::checked(&rec, self.cutoff)?, rec.resampled))
+        // A cut-off the record cannot carry is the command's fault (exit 2), a signal out of
+        // range the data's (exit 1): see `exit_code`.
+        let p = Prepared::checked(&rec, self.cutoff).map_err(|e| match e {
+            PrepareError::Cutoff(e) => anyhow::Error::new(e),
+            PrepareError::Data(e) => anyhow::Error::new(e),
+        })?;
+        Ok((p, rec.resampled))
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {

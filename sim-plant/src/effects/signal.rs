@@ -153,7 +153,11 @@ pub fn filtfilt(x: &[f64], fc: f64, fs: f64) -> Vec<f64> {
         Biquad::lowpass(fc, fs, 0.541_196_100_146_197),
         Biquad::lowpass(fc, fs, 1.306_562_964_876_376_6),
     ];
-    let pad = ((3.0 * fs / fc).ceil() as usize + 12).min(n - 1);
+    // Saturating: a cut-off far below the sample rate (a clock in µs read as s) asks for
+    // more padding than a usize holds, and the record's length caps it anyway.
+    let pad = ((3.0 * fs / fc).ceil() as usize)
+        .saturating_add(12)
+        .min(n - 1);
     // Odd reflection about the end points keeps value and slope continuous.
     let mut buf = Vec::with_capacity(n + 2 * pad);
     for i in (1..=pad).rev() {

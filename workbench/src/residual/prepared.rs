@@ -98,6 +98,35 @@ pub struct Prepared {
     pub noise_probe: Option<Box<Prepared>>,
 }
 
+/// A differentiator cut-off the record cannot carry ([`Prepared::checked`]).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "--cutoff {cutoff}: the differentiator's cut-off must be above 0 and below the Nyquist \
+     frequency of {} ({nyquist:.4} Hz)",
+    file.display()
+)]
+pub struct CutoffError {
+    /// The record's file (or [`crate::data::ARRAYS`]).
+    pub file: std::path::PathBuf,
+    /// The cut-off asked for (Hz).
+    pub cutoff: f64,
+    /// The record's Nyquist frequency (Hz).
+    pub nyquist: f64,
+}
+
+/// Why [`Prepared::checked`] refused a record. Two kinds, kept apart because a caller reports
+/// them differently: the cut-off is the caller's choice (the CLI exits 2, a usage error), an
+/// out-of-range signal is in the data (exit 1).
+#[derive(Debug, thiserror::Error)]
+pub enum PrepareError {
+    /// The cut-off asked for does not suit this record.
+    #[error(transparent)]
+    Cutoff(CutoffError),
+    /// A differentiated or filtered signal is out of range ([`DataError::Derived`]).
+    #[error(transparent)]
+    Data(DataError),
+}
+
 impl Prepared {
     /// RMS the position's noise (encoder quantisation and sensor noise) leaves in an
     /// equation-error residual through a model of inertia `inertia`: `J·σ_a`, the inertia
@@ -129,28 +158,74 @@ impl Prepared {
         self.noise_floor.hypot(self.encoder_floor(inertia))
     }
 
-    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate, at most 100 Hz).
-    /// [`Prepared::new`], refusing a record whose differentiated or filtered signals are out
-    /// of range for a fit (not finite, or a sum of squares that overflows): finite cells can
-    /// still differentiate to infinity (a jump of 1e308 over one sample), and a fit on them
-    /// gives NaN where it should give an error naming where.
-    pub fn checked(rec: &Recording, cutoff_hz: Option<f64>) -> Result<Self, DataError> {
+    /// [`Prepared::new`] for a fit, checked both ways a record can fail to prepare: a
+    /// caller's cut-off the differentiator cannot use (not above 0, not below the record's
+    /// Nyquist frequency), and differentiated or filtered signals out of range for a fit (not
+    /// finite, or a sum of squares that overflows) — finite cells can still differentiate to
+    /// infinity (a jump of 1e308 over one sample), and a fit on them gives NaN where it
+    /// should give an error naming where. The CLI's `--cutoff` and the Python package's
+    /// `cutoff` both come through here.
+    pub fn checked(rec: &Recording, cutoff_hz: Option<f64>) -> Result<Self, PrepareError> {
+        if let Some(cutoff) = cutoff_hz {
+            let nyquist = 0.5 / rec.dt;
+            if !(cutoff.is_finite() && cutoff > 0.0 && cutoff < nyquist) {
+                return Err(PrepareError::Cutoff(CutoffError {
+                    file: rec.path.clone(),
+                    cutoff,
+                    nyquist,
+                }));
+            }
+        }
         let p = Self::new(rec, cutoff_hz);
-        for (signal, x) in [
-            ("input after the intersample filter", &p.input),
-            ("position after smoothing", &p.position),
-            ("velocity after differentiation", &p.velocity),
-            ("acceleration after differentiation", &p.acceleration),
-            ("load position after smoothing", &p.load_position),
+        // Each signal with the clock it is indexed by (the raw ones span the whole record).
+        for (signal, x, time) in [
+            ("input after the intersample filter", &p.input, &p.time),
+            ("position after smoothing", &p.position, &p.time),
+            ("velocity after differentiation", &p.velocity, &p.time),
+            (
+                "acceleration after differentiation",
+                &p.acceleration,
+                &p.time,
+            ),
+            (
+                "acceleration at the record's edges",
+                &p.raw_acceleration,
+                &rec.time,
+            ),
+            ("load position after smoothing", &p.load_position, &p.time),
+            (
+                "input reconstructed from the motion",
+                &p.input_instrument,
+                &p.time,
+            ),
         ] {
             if let Some((k, why)) = super::super::data::out_of_range(x) {
-                return Err(DataError::Derived {
+                return Err(PrepareError::Data(DataError::Derived {
                     file: rec.path.clone(),
                     signal,
-                    time: p.time.get(k).copied().unwrap_or(f64::NAN),
+                    time: time.get(k).copied().unwrap_or(f64::NAN),
                     value: x[k],
                     why,
-                });
+                }));
+            }
+        }
+        for (statistic, value) in [
+            ("input noise floor", p.noise_floor),
+            ("input noise variance", p.input_noise_var),
+            ("position noise variance", p.position_noise_var),
+            ("acceleration noise variance", p.acceleration_noise_var),
+            (
+                "load acceleration noise variance",
+                p.load_acceleration_noise_var,
+            ),
+            ("stick velocity", p.stick_velocity),
+        ] {
+            if !value.is_finite() {
+                return Err(PrepareError::Data(DataError::Noise {
+                    file: rec.path.clone(),
+                    statistic,
+                    value,
+                }));
             }
         }
         Ok(p)
