@@ -541,9 +541,15 @@ impl Recording {
 /// Load a recording. Rejects missing columns, non-numeric cells, NaN/inf and non-increasing
 /// time with the file, line and column in the message.
 pub fn load(path: &Path, cols: &Columns) -> Result<Recording, DataError> {
+    load_bytes(&read_file(path)?, path, cols)
+}
+
+/// [`load`] on CSV text already in memory; `path` names it in errors and in the recording.
+/// The one parser behind [`load`], callable without a file (the fuzz target feeds it).
+pub fn load_bytes(text: &[u8], path: &Path, cols: &Columns) -> Result<Recording, DataError> {
     let names = column_names(cols);
     let units = column_units(path, &names)?;
-    let (raw, lines) = read_numeric(path, &names)?;
+    let (raw, lines) = parse_numeric(text, path, &names)?;
     build(path.to_path_buf(), raw, lines, &units, cols)
 }
 
@@ -608,7 +614,7 @@ fn build(
         .load_output
         .as_deref()
         .map(|_| scale(3, factor(3) * cols.load_gain));
-    // Every cell is finite (`read_numeric`); what the scaling made of it is checked here.
+    // Every cell is finite (`parse_numeric`); what the scaling made of it is checked here.
     let mut input_by = String::from("its unit");
     if cols.input_gain != 1.0 {
         input_by = format!("--input-gain {:?}", cols.input_gain);
@@ -747,7 +753,7 @@ fn build(
 /// error checks. For extra signals a command needs beside input/output (a reference, a pulse
 /// train).
 pub fn load_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, DataError> {
-    read_numeric(path, names).map(|(cols, _)| cols)
+    parse_numeric(&read_file(path)?, path, names).map(|(cols, _)| cols)
 }
 
 /// `v` of `column` at `line` of `file`, refused if NaN or infinite: the one finiteness check
@@ -765,19 +771,26 @@ fn finite(file: &Path, line: u64, column: &str, v: f64) -> Result<(), DataError>
     }
 }
 
+fn read_file(path: &Path) -> Result<Vec<u8>, DataError> {
+    std::fs::read(path).map_err(|source| DataError::Io {
+        file: path.to_path_buf(),
+        source,
+    })
+}
+
 /// The named columns as finite numbers, with the CSV line of each row (for later errors).
 /// A missing column, a cell that is not a number, NaN or inf is an error naming the file,
 /// the line and the column.
-fn read_numeric(path: &Path, names: &[&str]) -> Result<(Vec<Vec<f64>>, Vec<u64>), DataError> {
+fn parse_numeric(
+    text: &[u8],
+    path: &Path,
+    names: &[&str],
+) -> Result<(Vec<Vec<f64>>, Vec<u64>), DataError> {
     let file = path.to_path_buf();
-    let text = std::fs::read(path).map_err(|source| DataError::Io {
-        file: file.clone(),
-        source,
-    })?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
-        .from_reader(text.as_slice());
+        .from_reader(text);
     let header: Vec<String> = rdr
         .headers()
         .map_err(|e| DataError::Malformed {

@@ -6,10 +6,17 @@
 //! Stribeck), *residual vs position folded on a period* (ripple, cogging, gravity), and the
 //! *residual spectrum* (resonances, quantisation fuzz, periodic effects at speed × spatial
 //! frequency). The HTML inlines the SVGs so the report is one file you can mail.
+//!
+//! Drawing (`svg`, `png`, `write`) needs the default `plot` feature (plotters and its
+//! font and image stack); without it the charts' data ([`charts`], [`welch`]) is still here.
 
-use std::path::{Path, PathBuf};
+#[cfg(feature = "plot")]
+use std::path::Path;
+use std::path::PathBuf;
 
+#[cfg(feature = "plot")]
 use plotters::coord::Shift;
+#[cfg(feature = "plot")]
 use plotters::prelude::*;
 
 use super::metrics::Metrics;
@@ -62,6 +69,7 @@ pub struct Chart {
     pub series: Vec<Series>,
 }
 
+#[cfg(feature = "plot")]
 const COLORS: [RGBColor; 5] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
@@ -78,6 +86,7 @@ fn thin(points: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
     points.into_iter().step_by(step).collect()
 }
 
+#[cfg(feature = "plot")]
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, c: &Chart) -> Result<(), ReportError>
 where
     DB::ErrorType: 'static,
@@ -89,6 +98,7 @@ where
 }
 
 /// [`draw`], with the plotting library's errors as text (its error type is the backend's).
+#[cfg(feature = "plot")]
 fn draw_plot<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, c: &Chart) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -166,6 +176,7 @@ where
 }
 
 /// Render a chart to an SVG string.
+#[cfg(feature = "plot")]
 pub fn svg(c: &Chart) -> Result<String, ReportError> {
     let mut s = String::new();
     {
@@ -176,6 +187,7 @@ pub fn svg(c: &Chart) -> Result<String, ReportError> {
 }
 
 /// Render a chart to a PNG file.
+#[cfg(feature = "plot")]
 pub fn png(c: &Chart, path: &Path) -> Result<(), ReportError> {
     let root = BitMapBackend::new(path, (900, 380)).into_drawing_area();
     draw(root, c)
@@ -306,6 +318,7 @@ pub fn charts(res: &Residual, m: &Metrics, unit: &str) -> Vec<Chart> {
     ]
 }
 
+#[cfg(feature = "plot")]
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -314,6 +327,7 @@ fn esc(s: &str) -> String {
 
 /// Write SVGs (and PNGs if asked) of `charts` into `dir`, plus `report.html` with the charts
 /// inlined and `sections` (title, preformatted text) above them. Returns the HTML path.
+#[cfg(feature = "plot")]
 pub fn write(
     dir: &Path,
     title: &str,
