@@ -317,10 +317,12 @@ def recording(
     intersample: str = "zoh",
     gear_ratio: float = 1.0,
 ) -> Recording:
-    """A :class:`Recording` from arrays ``(t, u, q)``, a DataFrame or a CSV path.
+    """A :class:`Recording` from arrays ``(t, u, q)``, a DataFrame, a CSV path, or a dataset
+    file (``.toml``, the CLI's: it names the CSV and its columns, so nothing else is passed).
 
     With a DataFrame or a path, ``time`` (default ``time_s``), ``input`` and ``output`` name
-    columns, and so do ``load_output`` and ``input_times``. With arrays they are optional
+    columns, and so do ``load_output`` and ``input_times``; for a CSV path, a column not named
+    is found from the header's unit suffixes as the CLI finds it. With arrays they are optional
     labels (a unit suffix converts, as in a CSV), and ``load_output``/``input_times`` are
     arrays. ``window=(from, to)`` keeps the rows in that time span (either end ``None``).
     """
@@ -331,17 +333,40 @@ def recording(
         intersample=intersample,
         gear_ratio=gear_ratio,
     )
+    if isinstance(data, (str, os.PathLike)) and os.fspath(data).lower().endswith(".toml"):
+        given = [k for k, v in dict(time=time, input=input, output=output,
+                                    load_output=load_output, input_times=input_times,
+                                    window=window).items() if v is not None]
+        given += [k for k, v, d in (("input_gain", input_gain, 1.0), ("load_gain", load_gain, 1.0),
+                                    ("intersample", intersample, "zoh"),
+                                    ("gear_ratio", gear_ratio, 1.0)) if v != d]
+        if u is not None or q is not None or given:
+            raise ValueError(
+                f"{os.fspath(data)}: a dataset file says how to read its CSV; "
+                f"set {', '.join(given) or 'u, q'} in the file instead"
+            )
+        return Recording.from_dataset(os.fspath(data))
     if isinstance(data, (str, os.PathLike)) or _is_frame(data):
         if u is not None or q is not None:
             raise ValueError(
                 "with a DataFrame or a CSV path, name the columns (input=..., output=...) "
                 "instead of passing arrays"
             )
-        if input is None or output is None:
+        if _is_frame(data) and (input is None or output is None):
             raise ValueError("input= and output= must name the input and output columns")
         for arg, v in (("load_output", load_output), ("input_times", input_times)):
             if v is not None and not isinstance(v, str):
                 raise ValueError(f"{arg}: with a DataFrame or a CSV path, a column name")
+        if not _is_frame(data):
+            return Recording.from_csv(
+                os.fspath(data),
+                time=time,
+                input=input,
+                output=output,
+                load_output=load_output,
+                input_times=input_times,
+                **opts,
+            )
         names = dict(
             time=time or "time_s",
             input=input,
@@ -349,8 +374,6 @@ def recording(
             load_output=load_output,
             input_times=input_times,
         )
-        if not _is_frame(data):
-            return Recording.from_csv(os.fspath(data), **names, **opts)
         return Recording.from_arrays(
             _column(data, names["time"]),
             _column(data, input),

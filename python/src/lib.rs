@@ -17,9 +17,10 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::json;
-use sim_plant::effects::{EffectKind, Intersample};
+use sim_plant::effects::Intersample;
 
 use jointlab_workbench::data::{self, Arrays, Columns};
+use jointlab_workbench::dataset::Dataset;
 use jointlab_workbench::diagnose::{self, Options};
 use jointlab_workbench::fit;
 use jointlab_workbench::metrics;
@@ -231,21 +232,24 @@ fn columns(
             .parse::<Intersample>()
             .map_err(|e| value_error(format!("intersample={intersample:?}: {e}")))?,
         gear_ratio: check("gear_ratio", gear_ratio, true)?,
+        input_unit: None,
     })
 }
 
 #[pymethods]
 impl Recording {
-    /// Load a CSV file (the CLI's loader: units from the column-name suffixes).
+    /// Load a CSV file (the CLI's loader: units from the column-name suffixes; a column not
+    /// named is found from the header, as the CLI finds it).
     #[staticmethod]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (path, *, time, input, output, load_output = None, input_times = None,
-        input_gain = 1.0, load_gain = 1.0, window = None, intersample = "zoh", gear_ratio = 1.0))]
+    #[pyo3(signature = (path, *, time = None, input = None, output = None, load_output = None,
+        input_times = None, input_gain = 1.0, load_gain = 1.0, window = None, intersample = "zoh",
+        gear_ratio = 1.0))]
     fn from_csv(
         path: PathBuf,
-        time: String,
-        input: String,
-        output: String,
+        time: Option<String>,
+        input: Option<String>,
+        output: Option<String>,
         load_output: Option<String>,
         input_times: Option<String>,
         input_gain: f64,
@@ -254,10 +258,19 @@ impl Recording {
         intersample: &str,
         gear_ratio: f64,
     ) -> PyResult<Self> {
+        let header = if time.is_none() || input.is_none() || output.is_none() {
+            data::header(&path).map_err(data_error)?
+        } else {
+            Vec::new()
+        };
+        let pick = |named: Option<String>, role: data::Role| match named {
+            Some(n) => Ok(n),
+            None => data::detect(&path, &header, role).map_err(data_error),
+        };
         let cols = columns(
-            time,
-            input,
-            output,
+            pick(time, data::Role::Time)?,
+            pick(input, data::Role::Input)?,
+            pick(output, data::Role::Output)?,
             load_output,
             input_times,
             input_gain,
@@ -267,6 +280,17 @@ impl Recording {
             gear_ratio,
         )?;
         data::load(&path, &cols)
+            .map(|inner| Recording { inner })
+            .map_err(data_error)
+    }
+
+    /// Load the CSV a dataset file (TOML) names, read as the file says: the CLI's
+    /// `hil-host diagnose data.toml`.
+    #[staticmethod]
+    fn from_dataset(path: PathBuf) -> PyResult<Self> {
+        let d = Dataset::load(&path).map_err(|e| DataError::new_err(e.to_string()))?;
+        let cols = d.columns(&d.file, true).map_err(data_error)?;
+        data::load(&d.file, &cols)
             .map(|inner| Recording { inner })
             .map_err(data_error)
     }
@@ -470,12 +494,8 @@ fn py_fit(
     let mut m = model.map_or_else(model::Model::baseline, |m| m.inner.clone());
     let kind = match add {
         Some(n) => {
-            let k = EffectKind::from_name(n).ok_or_else(|| {
-                value_error(format!(
-                    "add={n:?}: unknown effect; known: {}",
-                    EffectKind::ALL.map(|k| k.name()).join(", ")
-                ))
-            })?;
+            let k = jointlab_workbench::names::effect(n)
+                .map_err(|e| value_error(format!("add={n:?}: {e}")))?;
             if m.has(k) {
                 return Err(value_error(format!(
                     "add={n:?}: the model already contains `{n}`"

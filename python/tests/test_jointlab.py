@@ -163,6 +163,23 @@ def synthetic(n=3000, dt=1e-3):
     return t, u, np.round(x * 1e6) / 1e6
 
 
+def test_a_dataset_file_and_a_suffixed_header_are_the_clis(emps, hil_host, tmp_path):
+    ds = tmp_path / "emps.toml"
+    ds.write_text(
+        f'file = "{(emps / "DATA_EMPS.csv").as_posix()}"\ntime = "t_s"\ninput = "vir_V"\n'
+        f'input_gain = {GTAU}\noutput = "qm_m"\n'
+    )
+    ref = cli(hil_host, "diagnose", emps / "DATA_EMPS.csv", *CLI_COLS)
+    assert_same(jointlab.diagnose(ds).to_json(), ref)
+    assert_same(cli(hil_host, "diagnose", ds), ref)
+    with pytest.raises(ValueError, match="in the file instead"):
+        jointlab.recording(ds, input_gain=2.0)
+    bad = tmp_path / "bad.toml"
+    bad.write_text('file = "x.csv"\ninptu = "u"\n')
+    with pytest.raises(jointlab.DataError, match="inptu"):
+        jointlab.recording(bad)
+
+
 def test_arrays_a_dataframe_and_a_csv_give_one_diagnosis(tmp_path):
     pd = pytest.importorskip("pandas")
     t, u, q = synthetic()
@@ -175,6 +192,8 @@ def test_arrays_a_dataframe_and_a_csv_give_one_diagnosis(tmp_path):
     from_csv = jointlab.diagnose(path, input="force_N", output="pos_m")
     assert_same(from_df.to_json(), d.to_json())
     assert_same(from_csv.to_json(), d.to_json())
+    # The header's suffixes name the columns when no argument does.
+    assert_same(jointlab.diagnose(path).to_json(), d.to_json())
     # A unit suffix converts arrays as it does a CSV column: millimetres in, metres inside.
     in_mm = jointlab.recording(t, u, q * 1e3, output="pos_mm")
     assert np.allclose(in_mm.output, q, rtol=1e-12, atol=0)
@@ -236,7 +255,7 @@ def test_bad_input_raises_the_error_of_its_kind_naming_it():
     # An argument the call cannot use: a plain ValueError, as the CLI's usage error.
     with usage_error(r"u: a 1-D array is needed"):
         jointlab.diagnose(t, np.stack([u, u]), q)
-    with usage_error(r"unknown effect; known: .*coulomb"):
+    with usage_error(r"unknown effect `cowlomb` .did you mean `coulomb`.*; known: "):
         jointlab.fit(t, u, q, add="cowlomb")
     with usage_error(r"alpha=2"):
         jointlab.diagnose(t, u, q, alpha=2.0)

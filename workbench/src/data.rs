@@ -54,14 +54,26 @@ pub enum DataError {
         source: std::io::Error,
     },
     /// A requested column is not in the header.
-    #[error("{file}:1: no column `{column}` in the header (have: {have})")]
+    #[error("{file}:1: no column `{column}` in the header{hint} (have: {have})")]
     MissingColumn {
         /// File.
         file: PathBuf,
         /// Requested column.
         column: String,
+        /// ` (did you mean …?)` when a header name is a near miss, else empty.
+        hint: String,
         /// Columns present.
         have: String,
+    },
+    /// No column was named for a role and the header does not settle which one it is.
+    #[error("{file}:1: no {role} column named, and {why}; name it (--{role} COLUMN, or `{role} = \"COLUMN\"` in a dataset file)")]
+    Undetected {
+        /// File.
+        file: PathBuf,
+        /// `time`, `input` or `output`.
+        role: &'static str,
+        /// What the header offered.
+        why: String,
     },
     /// A selected column's name ends in a unit-like suffix the table does not know.
     #[error("{file}:1: {source}")]
@@ -278,6 +290,9 @@ pub struct Columns {
     /// Turns of the output (position) column per turn of the joint's output: a gear's ratio N
     /// when the column is the motor shaft (gravity then acts on position/N); 1 by default.
     pub gear_ratio: f64,
+    /// The input's unit after `input_gain` (`N` for EMPS's volts × 35.15 N/V), as reports
+    /// label it; `None` labels it from the column's suffix and the gain ([`input_unit`]).
+    pub input_unit: Option<String>,
 }
 
 impl Columns {
@@ -294,6 +309,7 @@ impl Columns {
             load_gain: 1.0,
             intersample: Intersample::default(),
             gear_ratio: 1.0,
+            input_unit: None,
         }
     }
 
@@ -421,6 +437,9 @@ impl Recording {
 /// the product's (a unitless duty times a `_V` column reads `V`). A name [`load`] would refuse
 /// for its suffix reads as unitless here.
 pub fn input_unit(cols: &Columns) -> String {
+    if let Some(u) = &cols.input_unit {
+        return u.clone();
+    }
     let label = |c: &str| unit_of(c).map_or("", |u| u.0);
     let base = label(&cols.input);
     let u = match cols.input_times.as_deref().map(label) {
@@ -778,6 +797,106 @@ fn read_file(path: &Path) -> Result<Vec<u8>, DataError> {
     })
 }
 
+/// The header row of the CSV at `path`: its column names, trimmed.
+pub fn header(path: &Path) -> Result<Vec<String>, DataError> {
+    header_bytes(&read_file(path)?, path)
+}
+
+/// [`header`] of CSV text in memory.
+pub fn header_bytes(text: &[u8], path: &Path) -> Result<Vec<String>, DataError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_reader(text);
+    Ok(rdr
+        .headers()
+        .map_err(|e| DataError::Malformed {
+            file: path.to_path_buf(),
+            line: 1,
+            msg: e.to_string(),
+        })?
+        .iter()
+        .map(|s| s.to_string())
+        .collect())
+}
+
+/// Time-column names tried, in this order, when none is named.
+pub const TIME_NAMES: &[&str] = &["time_s", "t_s", "time", "t", "time_ms", "t_ms"];
+
+/// A column [`detect`] finds from the header when the caller names none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// The clock: the first of [`TIME_NAMES`] present.
+    Time,
+    /// The input: the one column whose suffix is a force or torque (`_N`, `_Nm`).
+    Input,
+    /// The output: the one column whose suffix is a position (`_rad`, `_deg`, `_m`, `_mm`).
+    Output,
+}
+
+impl Role {
+    /// The role's name in flags and dataset files.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Role::Time => "time",
+            Role::Input => "input",
+            Role::Output => "output",
+        }
+    }
+    /// The SI units a column in this role may carry (from its suffix).
+    const fn units(self) -> &'static [&'static str] {
+        match self {
+            Role::Time => &["s"],
+            Role::Input => &["N", "N·m"],
+            Role::Output => &["m", "rad"],
+        }
+    }
+}
+
+/// The column of `header` that plays `role`, when the header settles it: a recording whose
+/// names carry the unit suffixes (`time_s, torque_Nm, q_rad`) needs no column flags. Several
+/// candidates, or none, is an error that lists what there is.
+pub fn detect(file: &Path, header: &[String], role: Role) -> Result<String, DataError> {
+    let undetected = |why: String| DataError::Undetected {
+        file: file.to_path_buf(),
+        role: role.name(),
+        why,
+    };
+    if role == Role::Time {
+        return TIME_NAMES
+            .iter()
+            .find(|n| header.iter().any(|h| h == *n))
+            .map(|n| (*n).to_string())
+            .ok_or_else(|| {
+                undetected(format!(
+                    "the header has none of {}{}",
+                    TIME_NAMES.join(", "),
+                    crate::names::did_you_mean("time_s", header.iter().map(String::as_str))
+                ))
+            });
+    }
+    let fits: Vec<&String> = header
+        .iter()
+        .filter(|h| unit_of(h).is_ok_and(|(u, _)| role.units().contains(&u)))
+        .collect();
+    match fits.as_slice() {
+        [one] => Ok((*one).clone()),
+        [] => Err(undetected(format!(
+            "no column has a {} unit suffix (have: {})",
+            role.units().join(" or "),
+            header.join(", ")
+        ))),
+        many => Err(undetected(format!(
+            "{} columns could be it: {}",
+            many.len(),
+            many.iter()
+                .map(|h| h.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
+    }
+}
+
 /// The named columns as finite numbers, with the CSV line of each row (for later errors).
 /// A missing column, a cell that is not a number, NaN or inf is an error naming the file,
 /// the line and the column.
@@ -810,6 +929,7 @@ fn parse_numeric(
                 .ok_or_else(|| DataError::MissingColumn {
                     file: file.clone(),
                     column: (*n).into(),
+                    hint: crate::names::did_you_mean(n, header.iter().map(String::as_str)),
                     have: header.join(", "),
                 })
         })

@@ -66,11 +66,13 @@
 
 pub mod closed_loop;
 pub mod data;
+pub mod dataset;
 pub mod diagnose;
 pub mod diff;
 pub mod fit;
 pub mod metrics;
 pub mod model;
+pub mod names;
 pub mod refine;
 pub mod report;
 pub mod residual;

@@ -78,6 +78,7 @@ pub fn main() -> std::process::ExitCode {
 fn exit_code(e: &anyhow::Error) -> u8 {
     let data = e.chain().any(|c| {
         c.is::<jointlab_workbench::data::DataError>()
+            || c.is::<jointlab_workbench::dataset::DatasetError>()
             || c.is::<jointlab_workbench::model::ModelError>()
             || c.is::<jointlab_workbench::fit::FitError>()
             || c.is::<sim_plant::model::ModelError>()

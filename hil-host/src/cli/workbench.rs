@@ -7,6 +7,7 @@ use clap::{Args, ValueEnum};
 use sim_plant::effects::{EffectKind, Intersample};
 
 use jointlab_workbench::data::{self, Columns, Resampled};
+use jointlab_workbench::dataset::{self, Dataset};
 use jointlab_workbench::diagnose::{self, Options};
 use jointlab_workbench::fit::FitError;
 use jointlab_workbench::metrics;
@@ -48,31 +49,39 @@ pub enum ResidualArg {
     Output,
 }
 
-/// Recording and model options shared by every workbench command.
+/// Recording and model options shared by every workbench command. The column and gain flags
+/// override a dataset file's values; what neither names is found from the CSV's header.
 #[derive(Debug, Args)]
 pub struct DataArgs {
-    /// Recording (CSV with a header row).
+    /// Recording: a CSV with a header row, or a dataset file (.toml) that names one and how to
+    /// read it (docs/workbench.md, *Dataset files*).
     pub file: PathBuf,
-    /// Input column (force/torque, or a command scaled by --input-gain).
+    /// Input column (force/torque, or a command scaled by --input-gain). Default: the one
+    /// column whose suffix is a force or torque (`_N`, `_Nm`).
     #[arg(long)]
-    pub input: String,
-    /// Output (position) column.
+    pub input: Option<String>,
+    /// Output (position) column. Default: the one column whose suffix is a position (`_rad`,
+    /// `_deg`, `_m`, `_mm`).
     #[arg(long)]
-    pub output: String,
+    pub output: Option<String>,
     /// Optional load-side position column (an output encoder): backlash is then fitted on the
     /// measured deflection output − load instead of an estimate from the output alone.
     #[arg(long)]
     pub load_output: Option<String>,
     /// Gain from the load column to the output column's axis, e.g. the gear ratio N when the
-    /// load encoder is at the joint's output and --output is the motor shaft.
-    #[arg(long, default_value_t = 1.0, requires = "load_output", value_parser = gain, allow_negative_numbers = true)]
-    pub load_gain: f64,
-    /// Time column.
-    #[arg(long, default_value = "time_s")]
-    pub time: String,
-    /// Gain from the input column to force/torque (e.g. EMPS gtau = 35.15065188248547 N/V).
-    #[arg(long, default_value_t = 1.0, value_parser = gain, allow_negative_numbers = true)]
-    pub input_gain: f64,
+    /// load encoder is at the joint's output and --output is the motor shaft (default 1).
+    #[arg(long, value_parser = gain, allow_negative_numbers = true)]
+    pub load_gain: Option<f64>,
+    /// Time column. Default: the first of time_s, t_s, time, t, time_ms, t_ms in the header.
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Gain from the input column to force/torque (e.g. EMPS gtau = 35.15065188248547 N/V;
+    /// default 1).
+    #[arg(long, value_parser = gain, allow_negative_numbers = true)]
+    pub input_gain: Option<f64>,
+    /// The input's unit after --input-gain, as reports label it (e.g. `N`).
+    #[arg(long)]
+    pub input_unit: Option<String>,
     /// A column the input is multiplied by, row by row (e.g. the measured supply voltage when
     /// --input is a PWM duty in −1…1: duty × volts is the applied voltage).
     #[arg(long)]
@@ -92,81 +101,98 @@ pub struct DataArgs {
     pub cutoff: Option<f64>,
     /// What the input did between samples: `zoh` (a drive's log: position sampled when the
     /// command was computed, the command then held — a half-sample lag the baseline accounts
-    /// for, so `delay` means a delay beyond the hold), `foh` (linear between samples), `mid`
-    /// (command held, position logged mid-hold), `bl` (band-limited samples). Also applies to
-    /// a --validate file.
-    #[arg(long, default_value = "zoh", value_parser = intersample)]
-    pub intersample: Intersample,
+    /// for, so `delay` means a delay beyond the hold; the default), `foh` (linear between
+    /// samples), `mid` (command held, position logged mid-hold), `bl` (band-limited samples).
+    /// Also applies to a --validate file.
+    #[arg(long, value_parser = intersample)]
+    pub intersample: Option<Intersample>,
     /// The output column is the motor shaft of an N:1 gear: gravity acts on the joint's output
     /// angle, position/N (default 1: the column is the output's angle).
-    #[arg(long, default_value_t = 1.0, value_parser = positive)]
-    pub gear_ratio: f64,
+    #[arg(long, value_parser = positive)]
+    pub gear_ratio: Option<f64>,
 }
 
 impl DataArgs {
-    /// The columns, with the --from/--to window when `windowed` (the recording itself, not a
-    /// --validate file — which may be the same file, validated on all of it).
-    fn columns(&self, windowed: bool) -> Columns {
-        let window = (windowed && (self.from.is_some() || self.to.is_some())).then(|| {
-            (
-                self.from.unwrap_or(f64::NEG_INFINITY),
-                self.to.unwrap_or(f64::INFINITY),
-            )
-        });
-        Columns {
-            window,
+    /// What the flags say, as a dataset of `file`.
+    fn flags(&self, file: PathBuf) -> Dataset {
+        Dataset {
+            file,
+            description: None,
+            time: self.time.clone(),
             input: self.input.clone(),
             output: self.output.clone(),
             load_output: self.load_output.clone(),
-            time: self.time.clone(),
-            input_gain: self.input_gain,
-            input_times: self.input_times.clone(),
             load_gain: self.load_gain,
-            intersample: self.intersample,
+            input_gain: self.input_gain,
+            input_unit: self.input_unit.clone(),
+            input_times: self.input_times.clone(),
+            from: self.from,
+            to: self.to,
+            intersample: self.intersample.map(|i| i.name().to_string()),
             gear_ratio: self.gear_ratio,
+            validate: None,
         }
     }
-    /// A --validate recording: the whole file, no window. The recording itself, unwindowed,
-    /// is estimation data scored again, and the note says so.
+    /// The recording's description: the flags over the dataset file `path` when it is one.
+    fn dataset_of(&self, path: &Path) -> anyhow::Result<Dataset> {
+        if !dataset::is_dataset(path) {
+            return Ok(self.flags(path.to_path_buf()));
+        }
+        let d = Dataset::load(path)?;
+        let merged = self.flags(d.file.clone()).or(d);
+        merged.check(Path::new("<command line>"))?;
+        Ok(merged)
+    }
+    /// The recording's description.
+    pub fn dataset(&self) -> anyhow::Result<Dataset> {
+        self.dataset_of(&self.file)
+    }
+    /// The CSV the recording is read from (the dataset file's `file`, or the argument).
+    pub fn csv(&self) -> anyhow::Result<PathBuf> {
+        Ok(self.dataset()?.file)
+    }
+    /// The columns of the recording, with the --from/--to window when `windowed` (the
+    /// recording itself, not a --validate file — which may be the same file, validated on all
+    /// of it).
+    fn columns(&self, windowed: bool) -> anyhow::Result<Columns> {
+        let d = self.dataset()?;
+        Ok(d.columns(&d.file, windowed)?)
+    }
+    /// The validation file to use: `--validate` if given, else the dataset file's `validate`.
+    fn validate_file(&self, flag: Option<&PathBuf>) -> anyhow::Result<Option<PathBuf>> {
+        match flag {
+            Some(f) => Ok(Some(f.clone())),
+            None => Ok(self.dataset()?.validate),
+        }
+    }
+    /// A --validate recording: the whole file, no window, read with the recording's columns
+    /// (or, for a dataset file, with its own, under the same flags). The recording itself,
+    /// unwindowed, is estimation data scored again, and the note says so.
     fn validation(&self, file: &Path) -> anyhow::Result<Prepared> {
-        if file == self.file && self.from.is_none() && self.to.is_none() {
+        let d = self.dataset()?;
+        let v = if dataset::is_dataset(file) {
+            self.dataset_of(file)?
+        } else {
+            Dataset {
+                file: file.to_path_buf(),
+                ..d.clone()
+            }
+        };
+        if v.file == d.file && d.from.is_none() && d.to.is_none() {
             eprintln!(
                 "note: --validate {} is the recording itself: its scores are the estimation \
                  scores again (--from/--to hold out part of it)",
-                file.display()
+                v.file.display()
             );
         }
-        self.load(file, false).map(|(p, _)| p)
+        let cols = v.columns(&v.file, false)?;
+        load_prepared(&v.file, &cols, self.cutoff).map(|(p, _)| p)
     }
-    /// The recording (`file`, inside the --from/--to window), and how it was resampled.
+    /// The recording (inside the --from/--to window), and how it was resampled.
     fn recording(&self) -> anyhow::Result<(Prepared, Option<Resampled>)> {
-        self.load(&self.file, true)
-    }
-    /// `file` differentiated (inside the window if `windowed`), and how it was resampled, if
-    /// it was (for a report; the note is printed on stderr either way).
-    fn load(&self, file: &Path, windowed: bool) -> anyhow::Result<(Prepared, Option<Resampled>)> {
-        let cols = self.columns(windowed);
-        let rec = data::load(file, &cols)?;
-        // On stderr: `--json` keeps exactly one object on stdout.
-        if cols.window.is_some() {
-            eprintln!(
-                "note: {}: the {} rows from {:.4} to {:.4} s (--from/--to)",
-                file.display(),
-                rec.len(),
-                rec.time.first().copied().unwrap_or(f64::NAN),
-                rec.time.last().copied().unwrap_or(f64::NAN)
-            );
-        }
-        if let Some(r) = &rec.resampled {
-            eprintln!("{}", r.note(file));
-        }
-        // A cut-off the record cannot carry is the command's fault (exit 2), a signal out of
-        // range the data's (exit 1): see `exit_code`.
-        let p = Prepared::checked(&rec, self.cutoff).map_err(|e| match e {
-            PrepareError::Cutoff(e) => anyhow::Error::new(e),
-            PrepareError::Data(e) => anyhow::Error::new(e),
-        })?;
-        Ok((p, rec.resampled))
+        let d = self.dataset()?;
+        let cols = d.columns(&d.file, true)?;
+        load_prepared(&d.file, &cols, self.cutoff)
     }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
@@ -186,11 +212,41 @@ impl DataArgs {
                     record: "estimation",
                     value,
                 })
-                .context(self.file.display().to_string()));
+                .context(self.csv()?.display().to_string()));
             }
         }
         Ok(m)
     }
+}
+
+/// `file` read with `cols` and differentiated, and how it was resampled, if it was (for a
+/// report; the note is printed on stderr either way).
+fn load_prepared(
+    file: &Path,
+    cols: &Columns,
+    cutoff: Option<f64>,
+) -> anyhow::Result<(Prepared, Option<Resampled>)> {
+    let rec = data::load(file, cols)?;
+    // On stderr: `--json` keeps exactly one object on stdout.
+    if cols.window.is_some() {
+        eprintln!(
+            "note: {}: the {} rows from {:.4} to {:.4} s (--from/--to)",
+            file.display(),
+            rec.len(),
+            rec.time.first().copied().unwrap_or(f64::NAN),
+            rec.time.last().copied().unwrap_or(f64::NAN)
+        );
+    }
+    if let Some(r) = &rec.resampled {
+        eprintln!("{}", r.note(file));
+    }
+    // A cut-off the record cannot carry is the command's fault (exit 2), a signal out of
+    // range the data's (exit 1): see `exit_code`.
+    let p = Prepared::checked(&rec, cutoff).map_err(|e| match e {
+        PrepareError::Cutoff(e) => anyhow::Error::new(e),
+        PrepareError::Data(e) => anyhow::Error::new(e),
+    })?;
+    Ok((p, rec.resampled))
 }
 
 /// A probability strictly between 0 and 1 (`--alpha`).
@@ -279,7 +335,8 @@ pub struct DiagnoseArgs {
     /// Repeat rank → add → refit until nothing significant is left.
     #[arg(long)]
     pub auto: bool,
-    /// Validation recording (same columns) scored at every `--auto` step.
+    /// Validation recording (same columns, or a dataset file) scored at every `--auto` step;
+    /// default: the dataset file's `validate`.
     #[arg(long, requires = "auto")]
     pub validate: Option<PathBuf>,
     /// Family-wise error rate.
@@ -312,7 +369,8 @@ pub struct FitArgs {
     /// ripple, cogging, gravity, deadband, delay, quantization). Without it: refit only.
     #[arg(long)]
     pub add: Option<String>,
-    /// Validation recording (same columns).
+    /// Validation recording (same columns, or a dataset file); default: the dataset file's
+    /// `validate`.
     #[arg(long)]
     pub validate: Option<PathBuf>,
     /// Where to write the fitted model TOML.
@@ -326,6 +384,8 @@ pub struct FitArgs {
 /// Run `compare`.
 pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let (p, resampled) = a.data.recording()?;
+    let csv = a.data.csv()?;
+    let cols = a.data.columns(true)?;
     let model = match (&a.data.model, a.refit) {
         (Some(f), false) => Model::load(f)?,
         _ => a.data.model(&p)?,
@@ -355,13 +415,13 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
                 record: "estimation",
                 value,
             })
-            .context(a.data.file.display().to_string()));
+            .context(csv.display().to_string()));
         }
     }
     let rec_units = if mode == Mode::Equation {
-        data::input_unit(&a.data.columns(true))
+        data::input_unit(&cols)
     } else {
-        jointlab_workbench::units::unit_of(&a.data.output)?
+        jointlab_workbench::units::unit_of(&cols.output)?
             .0
             .to_string()
     };
@@ -370,12 +430,12 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let ptext = param_text(&params);
     let html = report::write(
         &a.out,
-        &format!("compare: {} vs {}", model.name, a.data.file.display()),
+        &format!("compare: {} vs {}", model.name, csv.display()),
         &[
             (
                 "metrics".into(),
                 match &resampled {
-                    Some(r) => format!("{}\n{}", r.note(&a.data.file), m.to_text()),
+                    Some(r) => format!("{}\n{}", r.note(&csv), m.to_text()),
                     None => m.to_text(),
                 },
             ),
@@ -495,8 +555,8 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let val = match &a.validate {
-        Some(f) => Some(a.data.validation(f)?),
+    let val = match a.data.validate_file(a.validate.as_ref())? {
+        Some(f) => Some(a.data.validation(&f)?),
         None => None,
     };
     // Each step refits its leading candidates in full (minutes on a long record): a spinner
@@ -572,7 +632,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         charts.extend(report::charts(
             &res,
             &m,
-            &data::input_unit(&a.data.columns(true)),
+            &data::input_unit(&a.data.columns(true)?),
         ));
         report_path = Some(report::write(
             dir,
@@ -739,16 +799,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     };
     let kind = match &a.add {
         Some(n) => {
-            let k = EffectKind::from_name(n).with_context(|| {
-                format!(
-                    "unknown effect `{n}`; known: {}",
-                    EffectKind::ALL
-                        .iter()
-                        .map(|k| k.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            })?;
+            let k = jointlab_workbench::names::effect(n)?;
             if model.has(k) {
                 bail!("the model already contains `{n}`");
             }
@@ -756,8 +807,8 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let val = match &a.validate {
-        Some(f) => Some(a.data.validation(f)?),
+    let val = match a.data.validate_file(a.validate.as_ref())? {
+        Some(f) => Some(a.data.validation(&f)?),
         None => None,
     };
     // A model file's own values, scored before `fit` refits them: "before" is the model

@@ -1,0 +1,216 @@
+//! Dataset files and column detection: a recording described once in TOML gives the same
+//! results as the flags it replaces; a header with unit suffixes needs no column flags; a
+//! misspelled column or effect gets a "did you mean"; what cannot be settled is an error that
+//! lists the candidates.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hil(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_hil-host"));
+    c.current_dir(dir);
+    c
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("jointlab-dataset-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// A 3 s PD-driven mass with viscous and Coulomb friction, logged under `names` (time,
+/// command in volts, position in mm) plus an unrelated `temp_C` column; the force is
+/// 12.5 N per logged volt.
+fn record(path: &Path, names: [&str; 3], seed: usize) {
+    let dt = 1e-3;
+    let (mut x, mut v) = (0.0f64, 0.0f64);
+    let mut s = format!("{},{},temp_C,{}\n", names[0], names[1], names[2]);
+    for k in 0..3000 {
+        let t = k as f64 * dt;
+        let r = 0.05 * (std::f64::consts::TAU * 0.7 * t).sin()
+            + 0.01 * (std::f64::consts::TAU * (2.3 + seed as f64) * t).sin();
+        let u = 400.0 * (r - x) - 40.0 * v + 0.01 * (((k + seed) * 7919 % 101) as f64 - 50.0);
+        s.push_str(&format!("{t},{},{},{}\n", u / 12.5, 20.0 + t, x * 1e3));
+        for _ in 0..10 {
+            let a = (u - 3.0 * v - 0.8 * v.signum()) / 2.0;
+            v += 1e-4 * a;
+            x += 1e-4 * v;
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+fn ok(o: Output) -> String {
+    assert!(o.status.success(), "{}", text(&o));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+#[test]
+fn a_dataset_file_gives_what_its_flags_give() {
+    let d = dir("same");
+    std::fs::create_dir_all(d.join("data")).unwrap();
+    record(&d.join("data/run.csv"), ["clock_s", "cmd_V", "pos_mm"], 0);
+    record(&d.join("data/val.csv"), ["clock_s", "cmd_V", "pos_mm"], 1);
+    // The file's paths are relative to the dataset file, not to the working directory.
+    std::fs::write(
+        d.join("data/run.toml"),
+        "description = \"a test rig\"\nfile = \"run.csv\"\ntime = \"clock_s\"\ninput = \"cmd_V\"\n\
+         input_gain = 12.5\ninput_unit = \"N\"\noutput = \"pos_mm\"\nintersample = \"zoh\"\n\
+         validate = \"val.csv\"\n",
+    )
+    .unwrap();
+    let flags = [
+        "--time",
+        "clock_s",
+        "--input",
+        "cmd_V",
+        "--input-gain",
+        "12.5",
+        "--output",
+        "pos_mm",
+    ];
+    let by_flags = ok(hil(&d)
+        .args(["diagnose", "data/run.csv", "--json"])
+        .args(flags)
+        .output()
+        .unwrap());
+    let by_file = ok(hil(&d)
+        .args(["diagnose", "data/run.toml", "--json"])
+        .output()
+        .unwrap());
+    assert_eq!(by_file, by_flags);
+    let j: serde_json::Value = serde_json::from_str(&by_file).unwrap();
+    assert_eq!(j["verdict"]["add"], "coulomb", "{by_file}");
+
+    // `fit` validates on the dataset's `validate`; `--validate` overrides it.
+    let fit = |args: &[&str], out: &str| {
+        let s = ok(hil(&d)
+            .arg("fit")
+            .args(args)
+            .args(["--add", "coulomb", "--json", "--save-model", out])
+            .output()
+            .unwrap());
+        serde_json::from_str::<serde_json::Value>(&s).unwrap()
+    };
+    let a = fit(&["data/run.toml"], "a.toml");
+    let mut with_flags = vec!["data/run.csv", "--validate", "data/val.csv"];
+    with_flags.extend(flags);
+    let b = fit(&with_flags, "b.toml");
+    assert_eq!(a["report"], b["report"]);
+    assert!(a["report"]["after_validation"].is_object(), "{a}");
+    let c = fit(&["data/run.toml", "--validate", "data/run.csv"], "c.toml");
+    assert_ne!(
+        a["report"]["after_validation"],
+        c["report"]["after_validation"]
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("a.toml")).unwrap(),
+        std::fs::read_to_string(d.join("b.toml")).unwrap()
+    );
+    // A flag wins over the file's value.
+    let e = ok(hil(&d)
+        .args(["diagnose", "data/run.toml", "--json", "--input-gain", "1"])
+        .output()
+        .unwrap());
+    assert_ne!(e, by_file);
+}
+
+#[test]
+fn a_header_with_unit_suffixes_needs_no_column_flags() {
+    let d = dir("detect");
+    record(&d.join("run.csv"), ["t_s", "force_N", "q_mm"], 0);
+    let named = ok(hil(&d)
+        .args(["diagnose", "run.csv", "--json"])
+        .args(["--time", "t_s", "--input", "force_N", "--output", "q_mm"])
+        .output()
+        .unwrap());
+    let found = ok(hil(&d)
+        .args(["diagnose", "run.csv", "--json"])
+        .output()
+        .unwrap());
+    assert_eq!(found, named);
+    // A dataset file that names only the file.
+    std::fs::write(d.join("min.toml"), "file = \"run.csv\"\n").unwrap();
+    let min = ok(hil(&d)
+        .args(["diagnose", "min.toml", "--json"])
+        .output()
+        .unwrap());
+    assert_eq!(min, named);
+}
+
+#[test]
+fn what_cannot_be_settled_is_an_error_that_helps() {
+    let d = dir("errors");
+    record(&d.join("two.csv"), ["time_s", "force_N", "q_mm"], 0);
+    let s = std::fs::read_to_string(d.join("two.csv")).unwrap();
+    // a second position column
+    let two: String = s
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 0 {
+                format!("{l},q2_deg\n")
+            } else {
+                format!("{l},0\n")
+            }
+        })
+        .collect();
+    std::fs::write(d.join("two.csv"), two).unwrap();
+    let notime = s.replacen("time_s", "stamp", 1);
+    std::fs::write(d.join("notime.csv"), notime).unwrap();
+    std::fs::write(d.join("typo.toml"), "file = \"two.csv\"\n\ninptu = \"x\"\n").unwrap();
+    std::fs::write(
+        d.join("gain.toml"),
+        "file = \"two.csv\"\noutput = \"q_mm\"\ninput_gain = 0\n",
+    )
+    .unwrap();
+    let cases: [(&[&str], i32, &[&str]); 6] = [
+        (
+            &["diagnose", "two.csv"],
+            1,
+            &["no output column named", "q_mm, q2_deg", "--output"],
+        ),
+        (
+            &["diagnose", "notime.csv"],
+            1,
+            &["no time column named", "time_s, t_s"],
+        ),
+        (
+            &["diagnose", "two.csv", "--output", "q_mn"],
+            1,
+            &["two.csv:1:", "no column `q_mn`", "did you mean `q_mm`?"],
+        ),
+        (
+            &["fit", "two.csv", "--output", "q_mm", "--add", "coulmb"],
+            2,
+            &["unknown effect `coulmb`", "did you mean `coulomb`?"],
+        ),
+        (
+            &["diagnose", "typo.toml"],
+            1,
+            &["typo.toml", "line 3", "inptu"],
+        ),
+        (
+            &["diagnose", "gain.toml"],
+            1,
+            &["gain.toml", "input_gain", "other than 0"],
+        ),
+    ];
+    for (args, code, says) in cases {
+        let o = hil(&d).args(args).output().unwrap();
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        for s in says {
+            assert!(err.contains(s), "{args:?} should say {s:?}: {}", text(&o));
+        }
+    }
+    assert!(!d.join("fitted-model.toml").exists());
+}
