@@ -164,3 +164,29 @@ fn emps_diagnose_fit_and_validate() {
     );
     assert!(pos_max < 2e-4, "position error {pos_max}");
 }
+
+/// The repository's dataset files for the real data (`datasets/`, the README's walk-through)
+/// read each record exactly as the columns the tests name by hand.
+#[test]
+fn the_shipped_dataset_files_read_what_the_tests_read() {
+    use jointlab_workbench::dataset::Dataset;
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let Some(dir) = emps_dir() else { return };
+    for (file, csv, val) in [
+        ("emps.toml", "DATA_EMPS.csv", Some("DATA_EMPS_PULSES.csv")),
+        ("emps-pulses.toml", "DATA_EMPS_PULSES.csv", None),
+    ] {
+        let d = Dataset::load(&root.join("datasets").join(file)).unwrap();
+        let by_file = data::load(&d.file, &d.columns(&d.file, true).unwrap()).unwrap();
+        let by_hand = data::load(&dir.join(csv), &cols()).unwrap();
+        assert_eq!(by_file.time, by_hand.time, "{file}");
+        assert_eq!(by_file.input, by_hand.input, "{file}");
+        assert_eq!(by_file.output, by_hand.output, "{file}");
+        assert_eq!(data::input_unit(&d.columns(&d.file, true).unwrap()), "N");
+        assert_eq!(
+            d.validate.map(|v| std::fs::canonicalize(v).unwrap()),
+            val.map(|v| std::fs::canonicalize(dir.join(v)).unwrap()),
+            "{file}"
+        );
+    }
+}

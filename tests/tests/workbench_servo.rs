@@ -228,3 +228,22 @@ fn readme_commands_run() {
     assert!((3.5..5.5).contains(&g), "gravity amplitude {g} V");
     assert!(c > 0.0 && c < 0.3 * g, "Coulomb level {c} V");
 }
+
+/// `datasets/xl330-pendulum.toml` (the README's walk-through) reads the Kp 200 record as the
+/// columns named here, and validates on its sin_sin twin.
+#[test]
+fn the_shipped_dataset_file_reads_what_the_tests_read() {
+    use jointlab_workbench::dataset::Dataset;
+    let Some(dir) = servo_dir() else { return };
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let d = Dataset::load(&root.join("datasets/xl330-pendulum.toml")).unwrap();
+    let by_file = data::load(&d.file, &d.columns(&d.file, true).unwrap()).unwrap();
+    let by_hand = data::load(&dir.join("sin_time_square_kp200.csv"), &cols()).unwrap();
+    assert_eq!(by_file.time, by_hand.time);
+    assert_eq!(by_file.input, by_hand.input);
+    assert_eq!(by_file.output, by_hand.output);
+    assert_eq!(
+        d.validate.map(|v| std::fs::canonicalize(v).unwrap()),
+        Some(std::fs::canonicalize(dir.join("sin_sin_kp200.csv")).unwrap())
+    );
+}

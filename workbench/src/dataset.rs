@@ -109,6 +109,24 @@ pub enum DatasetError {
     },
 }
 
+/// `file` relative to `dir`, with `dir/..` pairs folded so messages show a plain path
+/// (`../shared/x.csv`, not `datasets/../../shared/x.csv`).
+fn beside(dir: &Path, file: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in dir.join(file).components() {
+        let last_is_name = matches!(out.components().next_back(), Some(Component::Normal(_)));
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if last_is_name => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
 /// Whether `path` names a dataset file rather than a CSV (by its `.toml` extension).
 pub fn is_dataset(path: &Path) -> bool {
     path.extension()
@@ -132,8 +150,8 @@ impl Dataset {
         })?;
         let mut d = Self::from_toml_str(&text, path)?;
         let dir = path.parent().unwrap_or(Path::new(""));
-        d.file = dir.join(&d.file);
-        d.validate = d.validate.map(|v| dir.join(v));
+        d.file = beside(dir, &d.file);
+        d.validate = d.validate.map(|v| beside(dir, &v));
         Ok(d)
     }
 
@@ -285,6 +303,19 @@ mod tests {
             assert!(e.to_string().contains(says), "{text:?}: {e}");
             assert!(e.to_string().starts_with("d.toml"), "{e}");
         }
+    }
+
+    #[test]
+    fn paths_are_relative_to_the_dataset_file() {
+        let p = |d: &str, f: &str| beside(Path::new(d), Path::new(f));
+        assert_eq!(
+            p("datasets", "../../shared/x.csv"),
+            Path::new("../shared/x.csv")
+        );
+        assert_eq!(p("a/b", "./c.csv"), Path::new("a/b/c.csv"));
+        assert_eq!(p("", "c.csv"), Path::new("c.csv"));
+        assert_eq!(p("/r/d", "../c.csv"), Path::new("/r/c.csv"));
+        assert_eq!(p("a", "/abs/c.csv"), Path::new("/abs/c.csv"));
     }
 
     #[test]

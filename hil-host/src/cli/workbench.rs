@@ -18,27 +18,25 @@ use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
 
 /// Examples for `compare --help`.
 pub const COMPARE_EXAMPLES: &str = "Examples:
-  # EMPS: default baseline (rigid mass + viscous, fitted), equation error, report in emps-report/
-  hil-host compare ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
-      --input-gain 35.15065188248547 --output qm_m --out emps-report
-  # a fitted model on validation data, simulation (output) error, PNGs as well
-  hil-host compare run.csv --input torque_Nm --output q_rad --model fitted.toml --residual output --png";
+  # EMPS's validation record (a dataset file names the CSV and its columns), report in report/
+  hil-host compare datasets/emps-pulses.toml --model emps2.toml --out report
+  # a CSV whose header has unit suffixes needs no column flags; output error, PNGs as well
+  hil-host compare run.csv --model fitted.toml --residual output --png
+  # or name the columns
+  hil-host compare run.csv --time t_s --input cmd_V --input-gain 12.5 --output q_rad --model fitted.toml";
 
 /// Examples for `diagnose --help`.
 pub const DIAGNOSE_EXAMPLES: &str = "Examples:
-  hil-host diagnose ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
-      --input-gain 35.15065188248547 --output qm_m --json
-  # add effects until nothing significant is left; table, plot, final model
-  hil-host diagnose run.csv --input torque_Nm --output q_rad --auto --validate val.csv \\
-      --save-model auto.toml --out auto-report";
+  hil-host diagnose datasets/emps.toml --json
+  # add effects until nothing significant is left, validated on the dataset's `validate`
+  hil-host diagnose datasets/emps.toml --auto --save-model auto.toml --out auto-report
+  hil-host diagnose run.csv --input torque_Nm --output q_rad --auto --validate val.csv";
 
 /// Examples for `fit --help`.
 pub const FIT_EXAMPLES: &str = "Examples:
-  hil-host fit ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
-      --input-gain 35.15065188248547 --output qm_m --add coulomb --save-model emps1.toml
-  hil-host fit ../shared/data/real/emps/DATA_EMPS.csv --time t_s --input vir_V \\
-      --input-gain 35.15065188248547 --output qm_m --model emps1.toml --add offset \\
-      --validate ../shared/data/real/emps/DATA_EMPS_PULSES.csv --save-model emps2.toml";
+  hil-host fit datasets/emps.toml --add coulomb --save-model emps1.toml
+  hil-host fit datasets/emps.toml --model emps1.toml --add offset --save-model emps2.toml
+  hil-host fit run.csv --input torque_Nm --output q_rad --add ripple --validate val.csv";
 
 /// Residual choice.
 #[derive(Debug, Clone, Copy, ValueEnum)]
