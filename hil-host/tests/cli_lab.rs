@@ -54,7 +54,7 @@ fn demo_writes_recording_log_and_plot_and_prints_the_summary() {
         .output()
         .unwrap();
     assert!(rep.status.success());
-    assert!(String::from_utf8_lossy(&rep.stdout).contains("Sensor(Repr"));
+    assert!(String::from_utf8_lossy(&rep.stdout).contains("Sensor[1] motor_counts="));
     std::fs::remove_dir_all(&dir).ok();
 }
 

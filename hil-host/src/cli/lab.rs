@@ -1,4 +1,4 @@
-//! The HIL commands: `demo`, `run`, `card`, `plant`, `supervise`, `replay`, `bench`.
+//! The HIL commands: `demo`, `run`, `card`, `plant`, `supervise`, `bench` (`replay` is in `replay`).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use controller::proto::{Message, Mode, NodeId};
+use controller::proto::{Mode, NodeId};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
@@ -26,7 +26,6 @@ use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantLoop
 use crate::lab::trajectory::Trajectory;
 use crate::lab::{Lab, LabOptions};
 use jointlab_can::bus::{open_bus, BusSpec, CanBus, Impaired, InprocHub, LinkClock, LinkStats};
-use jointlab_can::candump::{read_log_skipping, LoggedFrame};
 
 /// What `--inject` takes, for the help texts.
 pub const INJECT_HELP: &str = "Faults (--inject, repeatable; T and D in seconds of run time):
@@ -70,10 +69,6 @@ pub const SUPERVISE_EXAMPLES: &str = "Examples:
   hil-host supervise --bus vcan0 --node 1 --preset whoi-cable-30 --scenario step
   hil-host supervise --bus vcan0 --preset harmonic-drive-60 --mode position-pd-colocated \\
       --stiffness 60 --damping 5 --trajectory sine:0.1:0.5 --rate 200 --seconds 10";
-/// `replay` examples.
-pub const REPLAY_EXAMPLES: &str = "Examples:
-  hil-host replay run.log                 # decode every frame of a candump -L log
-  hil-host replay run.log --bus vcan0     # put it back on a bus with its original timing";
 /// `bench` examples.
 pub const BENCH_EXAMPLES: &str = "Examples:
   hil-host bench                          # lockstep cycles/s on the in-process bus, bus load
@@ -1027,59 +1022,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         .collect();
     print_report(&r, a.report.json);
     verdicts(&[r])
-}
-
-/// `hil-host replay`.
-#[derive(Debug, Args)]
-pub struct ReplayArgs {
-    /// A candump -L log (from `demo`, `run`, `plant --candump`, or can-utils).
-    pub log: PathBuf,
-    /// Send the frames to this bus with their original spacing instead of printing them.
-    #[arg(long)]
-    pub bus: Option<String>,
-}
-
-/// Decodes (or replays) a candump log.
-pub fn replay(a: ReplayArgs) -> Result<()> {
-    let log = read_log_skipping(&a.log)?;
-    if let Some(note) = log.skipped_note(&a.log) {
-        eprintln!("{note}");
-    }
-    let recs = log.records;
-    if let Some(spec) = &a.bus {
-        let mut bus = open_bus(spec).map_err(|e| anyhow!("{e}"))?;
-        let t0 = std::time::Instant::now();
-        let first = recs
-            .first()
-            .map(|r| r.time.as_duration())
-            .unwrap_or_default();
-        let mut sent = 0;
-        for r in &recs {
-            if let LoggedFrame::Can(f) = &r.frame {
-                let due = r.time.as_duration().saturating_sub(first);
-                if let Some(wait) = due.checked_sub(t0.elapsed()) {
-                    std::thread::sleep(wait);
-                }
-                bus.send(f).map_err(|e| anyhow!("{e}"))?;
-                sent += 1;
-            }
-        }
-        println!("replayed {sent} frames to {spec}");
-        return Ok(());
-    }
-    for r in &recs {
-        let t = r.time.as_duration().as_secs_f64();
-        match &r.frame {
-            LoggedFrame::Can(f) => match Message::decode(f) {
-                Ok((n, m)) => {
-                    println!("{t:>14.6} {:>6} {f:<24} node {:>3} {m:?}", r.iface, n.get())
-                }
-                Err(e) => println!("{t:>14.6} {:>6} {f:<24} (not jointlab: {e:?})", r.iface),
-            },
-            other => println!("{t:>14.6} {:>6} {other:?}", r.iface),
-        }
-    }
-    Ok(())
 }
 
 /// `hil-host bench`.

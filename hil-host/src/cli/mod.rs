@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod lab;
+pub mod replay;
 pub mod workbench;
 
 /// jointlab host: HIL lab and model-vs-measurement workbench.
@@ -35,9 +36,9 @@ pub enum Command {
     /// The supervisor alone on a bus: gains in SI, arming, setpoint streams, live telemetry.
     #[command(after_help = lab::SUPERVISE_EXAMPLES)]
     Supervise(lab::SuperviseArgs),
-    /// Decode a candump -L log, or put it back on a bus.
-    #[command(after_help = lab::REPLAY_EXAMPLES)]
-    Replay(lab::ReplayArgs),
+    /// Decode a candump -L log (signals with units), convert it to a recording, or put it back on a bus.
+    #[command(after_help = replay::REPLAY_EXAMPLES)]
+    Replay(replay::ReplayArgs),
     /// Lockstep cycles per second and bus load.
     #[command(after_help = lab::BENCH_EXAMPLES)]
     Bench(lab::BenchArgs),
@@ -139,7 +140,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Card(a) => lab::card(a),
         Command::Plant(a) => lab::plant(a),
         Command::Supervise(a) => lab::supervise(a),
-        Command::Replay(a) => lab::replay(a),
+        Command::Replay(a) => replay::replay(a),
         Command::Bench(a) => lab::bench(a),
         Command::Compare(a) => workbench::compare(a),
         Command::Diagnose(a) => workbench::diagnose(a),
