@@ -1,6 +1,6 @@
 //! Proof on a second real machine: a Dynamixel XL330 hobby servo (a DC motor behind ≈288:1
 //! spur gears) swinging a pendulum, 16 logs of the BAM project (Duclusaud, Passault, Padois &
-//! Ly, ICRA 2025; `../shared/data/real/servo_xl330_pendulum_bam/`).
+//! Ly, ICRA 2025; shipped in `data/xl330-pendulum/`, Apache-2.0).
 //!
 //! The logs are what a joint builder gets from a polled servo: ≈186 Hz on an irregular host
 //! clock (the loader puts it on a uniform one), the PWM duty and the supply voltage instead of
@@ -30,8 +30,9 @@ const G: f64 = 9.80665;
 /// their current library value.
 const ARMATURE: [f64; 2] = [1.643e-3, 1.81e-3];
 
+/// The logs ship in the repository (Apache-2.0, `data/xl330-pendulum/`): these tests never skip.
 fn servo_dir() -> Option<PathBuf> {
-    jointlab_tests::real_data("servo_xl330_pendulum_bam/csv", "sin_sin_kp100.csv")
+    Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/xl330-pendulum"))
 }
 
 fn cols() -> Columns {
