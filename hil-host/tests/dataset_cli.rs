@@ -214,3 +214,69 @@ fn what_cannot_be_settled_is_an_error_that_helps() {
     }
     assert!(!d.join("fitted-model.toml").exists());
 }
+
+/// `fit` and `diagnose --auto` keep their model by default and never replace an earlier one
+/// they were not told to: the second run writes beside the first. A named file is replaced.
+/// The report directory is `--report` (`--out` still works).
+#[test]
+fn models_are_kept_and_never_silently_replaced() {
+    let d = dir("keep");
+    record(&d.join("run.csv"), ["time_s", "force_N", "q_mm"], 0);
+    let fit = |extra: &[&str]| {
+        ok(hil(&d)
+            .args(["fit", "run.csv", "--add", "coulomb"])
+            .args(extra)
+            .output()
+            .unwrap())
+    };
+    let first = fit(&[]);
+    assert!(
+        first.contains("model written to fitted-model.toml"),
+        "{first}"
+    );
+    let kept = std::fs::read_to_string(d.join("fitted-model.toml")).unwrap();
+    std::fs::write(d.join("fitted-model.toml"), format!("# mine\n{kept}")).unwrap();
+    let second = fit(&[]);
+    assert!(
+        second.contains("model written to fitted-model-2.toml"),
+        "{second}"
+    );
+    assert!(std::fs::read_to_string(d.join("fitted-model.toml"))
+        .unwrap()
+        .starts_with("# mine"));
+    fit(&["--save-model", "fitted-model.toml"]);
+    assert!(!std::fs::read_to_string(d.join("fitted-model.toml"))
+        .unwrap()
+        .starts_with("# mine"));
+
+    let auto = ok(hil(&d)
+        .args([
+            "diagnose",
+            "run.csv",
+            "--auto",
+            "--max-steps",
+            "1",
+            "--report",
+            "rep",
+        ])
+        .output()
+        .unwrap());
+    assert!(auto.contains("model written to auto-model.toml"), "{auto}");
+    assert!(d.join("rep/report.html").exists());
+    assert!(
+        !d.join("rep/auto_error.png").exists(),
+        "PNGs only with --png"
+    );
+    ok(hil(&d)
+        .args([
+            "compare",
+            "run.csv",
+            "--model",
+            "auto-model.toml",
+            "--out",
+            "old",
+        ])
+        .output()
+        .unwrap());
+    assert!(d.join("old/report.html").exists());
+}

@@ -247,6 +247,22 @@ fn load_prepared(
     Ok((p, rec.resampled))
 }
 
+/// Where a command writes its model: the path named with --save-model (replaced if it exists:
+/// the user named it), else `stem.toml`, or the first free `stem-2.toml`, `stem-3.toml`, … so
+/// an earlier run's model is never silently lost.
+fn model_path(named: Option<&PathBuf>, stem: &str) -> PathBuf {
+    if let Some(p) = named {
+        return p.clone();
+    }
+    (1u32..)
+        .map(|k| match k {
+            1 => PathBuf::from(format!("{stem}.toml")),
+            k => PathBuf::from(format!("{stem}-{k}.toml")),
+        })
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| PathBuf::from(format!("{stem}.toml")))
+}
+
 /// A probability strictly between 0 and 1 (`--alpha`).
 fn probability(s: &str) -> Result<f64, String> {
     let x: f64 = s.parse().map_err(|e| format!("`{s}`: {e}"))?;
@@ -305,10 +321,10 @@ pub struct CompareArgs {
     /// Period for folding the residual over position (default: travel / 10).
     #[arg(long, value_parser = positive)]
     pub period: Option<f64>,
-    /// Directory for plots and report.html.
-    #[arg(long, default_value = "workbench-report")]
-    pub out: PathBuf,
-    /// Also write PNGs.
+    /// Directory for the plots and report.html (`--out` is the older name).
+    #[arg(long = "report", alias = "out", default_value = "workbench-report")]
+    pub report: PathBuf,
+    /// Also write PNGs beside the report's SVGs.
     #[arg(long)]
     pub png: bool,
     /// Refit the free parameters of `--model` on this recording first (by default a given
@@ -349,12 +365,16 @@ pub struct DiagnoseArgs {
     /// Most effects `--auto` adds.
     #[arg(long, default_value_t = 6, requires = "auto")]
     pub max_steps: usize,
-    /// Write the `--auto` model here.
+    /// Write the `--auto` model here (default `auto-model.toml`, or `auto-model-2.toml`, …
+    /// when that exists: an earlier model is never replaced unless named here).
     #[arg(long, requires = "auto")]
     pub save_model: Option<PathBuf>,
-    /// Directory for the `--auto` plot and report.
-    #[arg(long, requires = "auto")]
-    pub out: Option<PathBuf>,
+    /// Directory for the `--auto` plot and report.html (`--out` is the older name).
+    #[arg(long = "report", alias = "out", requires = "auto")]
+    pub report: Option<PathBuf>,
+    /// Also write PNGs beside the report's SVGs.
+    #[arg(long, requires = "report")]
+    pub png: bool,
 }
 
 /// `fit` options.
@@ -371,9 +391,11 @@ pub struct FitArgs {
     /// `validate`.
     #[arg(long)]
     pub validate: Option<PathBuf>,
-    /// Where to write the fitted model TOML.
-    #[arg(long, default_value = "fitted-model.toml")]
-    pub save_model: PathBuf,
+    /// Where to write the fitted model TOML (default `fitted-model.toml`, or
+    /// `fitted-model-2.toml`, … when that exists: an earlier model is never replaced unless
+    /// named here).
+    #[arg(long)]
+    pub save_model: Option<PathBuf>,
     /// Print the report as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -427,7 +449,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let params = refine::param_rows(&model);
     let ptext = param_text(&params);
     let html = report::write(
-        &a.out,
+        &a.report,
         &format!("compare: {} vs {}", model.name, csv.display()),
         &[
             (
@@ -553,16 +575,20 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    let save = model_path(a.save_model.as_ref(), "auto-model");
     let val = match a.data.validate_file(a.validate.as_ref())? {
         Some(f) => Some(a.data.validation(&f)?),
         None => None,
     };
     // Each step refits its leading candidates in full (minutes on a long record): a spinner
     // on stderr with the steps so far (drawn only on a terminal, so pipes and --json are clean).
-    let spinner = indicatif::ProgressBar::new_spinner();
-    if let Ok(st) = indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}") {
+    let spinner = indicatif::ProgressBar::new(a.max_steps as u64);
+    if let Ok(st) =
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} step {pos}/{len}: {msg}")
+    {
         spinner.set_style(st);
     }
+    spinner.set_message("ranking the library's effects and refitting the leading candidates");
     spinner.enable_steady_tick(std::time::Duration::from_millis(200));
     let run = refine::auto_observed(
         &mut model,
@@ -581,21 +607,17 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 "step {}: {what}, fit {:.3} %, RMS {:.4e}",
                 s.step, s.score.fit_percent, s.score.rms
             ));
-            spinner.set_message(format!(
-                "step {}: ranking what is left and refitting the leading candidates",
-                s.step + 1
-            ));
+            spinner.set_position((s.step as u64).min(a.max_steps as u64));
+            spinner.set_message("ranking what is left and refitting the leading candidates");
         },
     );
     // Cleared before an error is printed too, so no spinner line is left above it.
     spinner.finish_and_clear();
     let run = run?;
-    if let Some(f) = &a.save_model {
-        model.save(f)?;
-    }
+    model.save(&save)?;
     let table = auto_text(&run.steps);
     let mut report_path = None;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = &a.report {
         let mut series = vec![Series {
             name: "estimation RMS".into(),
             points: run
@@ -645,7 +667,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 ("final metrics".into(), m.to_text()),
             ],
             &charts,
-            true,
+            a.png,
         )?);
     }
     if a.json {
@@ -657,6 +679,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 "stop": run.stop,
                 "final": run.last.to_json(),
                 "model": model.to_sim(),
+                "model_file": save,
                 "resampled": resampled,
             })
         );
@@ -670,9 +693,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         if let Some(r) = report_path {
             println!("report: {}", r.display());
         }
-        if let Some(f) = &a.save_model {
-            println!("model written to {}", f.display());
-        }
+        println!("model written to {}", save.display());
     }
     Ok(())
 }
@@ -790,6 +811,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
 
 /// Run `fit`.
 pub fn fit(a: FitArgs) -> anyhow::Result<()> {
+    let save = model_path(a.save_model.as_ref(), "fitted-model");
     let (p, resampled) = a.data.recording()?;
     let mut model = match &a.data.model {
         Some(f) => Model::load(f)?,
@@ -817,14 +839,14 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         validation: val.as_ref().map(|v| refine::score(&model, v)),
     });
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
-    model.save(&a.save_model)?;
+    model.save(&save)?;
     if a.json {
         println!(
             "{}",
             serde_json::json!({
                 "report": r,
                 "as_given": as_given,
-                "model_file": a.save_model,
+                "model_file": save,
                 "resampled": resampled,
             })
         );
@@ -842,8 +864,8 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
                 );
             }
         }
-        println!("model written to {}", a.save_model.display());
-        if let Some(n) = fit_advice(&r, !p.load_position.is_empty(), &a.save_model) {
+        println!("model written to {}", save.display());
+        if let Some(n) = fit_advice(&r, !p.load_position.is_empty(), &save) {
             print!("{n}");
         }
     }
