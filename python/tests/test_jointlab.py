@@ -138,11 +138,13 @@ def test_emps_fit_chain_and_compare_are_the_clis(emps, hil_host, frames, tmp_pat
     assert math.isclose(rms, c.metrics["rms"], rel_tol=1e-9)
 
 
-def test_emps_auto_with_validation_is_the_clis(emps, hil_host, frames):
+def test_emps_auto_with_validation_is_the_clis(emps, hil_host, frames, tmp_path):
     ref = cli(
         hil_host, "diagnose", emps / "DATA_EMPS.csv", *CLI_COLS, "--auto", "--validate",
-        emps / "DATA_EMPS_PULSES.csv",
+        emps / "DATA_EMPS_PULSES.csv", "--save-model", tmp_path / "auto.toml",
     )
+    # The CLI keeps its model in a file; the library returns it.
+    assert ref.pop("model_file") == str(tmp_path / "auto.toml")
     run = jointlab.auto(frames[0], validate=frames[1], **COLS)
     assert_same(run.to_json(), ref)
     added = [s.added for s in run.steps if s.added]

@@ -177,7 +177,11 @@ fn readme_commands_run() {
     std::fs::create_dir_all(&out).unwrap();
     let est = dir.join("sin_time_square_kp200.csv");
     let val = dir.join("sin_sin_kp200.csv");
-    let (xl1, xl2) = (out.join("xl1.toml"), out.join("xl2.toml"));
+    let (xl1, xl2, xl3) = (
+        out.join("xl1.toml"),
+        out.join("xl2.toml"),
+        out.join("xl3.toml"),
+    );
     let path = |p: &Path| p.to_str().unwrap().to_string();
     let b = [
         "--time",
@@ -199,7 +203,7 @@ fn readme_commands_run() {
             .collect();
         run(Cli::parse_from(args)).unwrap_or_else(|e| panic!("{head:?}: {e:#}"));
     };
-    let (est, val, xl1s, xl2s) = (path(&est), path(&val), path(&xl1), path(&xl2));
+    let (est, val, xl1s, xl2s, xl3s) = (path(&est), path(&val), path(&xl1), path(&xl2), path(&xl3));
     cmd(&["diagnose", &est], &["--json"]);
     cmd(
         &["fit", &est],
@@ -216,7 +220,11 @@ fn readme_commands_run() {
         &["fit", &est],
         &["--model", &xl1s, "--add", "coulomb", "--save-model", &xl2s],
     );
-    cmd(&["diagnose", &est], &["--auto", "--validate", &val]);
+    cmd(
+        &["diagnose", &est],
+        &["--auto", "--validate", &val, "--save-model", &xl3s],
+    );
+    assert!(xl3.exists(), "--auto keeps its model");
     let rows = refine::param_rows(&Model::load(&xl2).unwrap());
     std::fs::remove_dir_all(&out).ok();
     let value = |owner: &str, name: &str| {

@@ -524,7 +524,10 @@ fn delay_probe(
     let err = (r0 - r1) / r0.max(1e-300);
     let explained = ((r0 - r1).max(0.0) / n).sqrt();
     let tau = m.effects.last().map_or(0.0, |e| e.shape.delay);
+    // Like every step of `--auto`, only a model the simulator accepts (the refit with the
+    // delay can push another amplitude out of its range).
     if tau > 0.0
+        && m.physical().is_ok()
         && err >= opts.min_err
         && explained >= opts.min_rho * p.practical_floor(r0)
         && bic(&m, p) < bic(model, p)
