@@ -183,3 +183,98 @@ fn run_over_threads_in_real_time_reports_lateness() {
     assert_eq!(out.status.code(), Some(if ok { 0 } else { 1 }), "{all}");
     assert!(text.contains("actuator frames missing"), "{all}");
 }
+
+fn demo_json(args: &[&str], out: &std::path::Path) -> serde_json::Value {
+    let o = hil()
+        .arg("demo")
+        .args(args)
+        .args(["--json", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("{e}: {text}\n{}", String::from_utf8_lossy(&o.stderr)))
+}
+
+fn figure(j: &serde_json::Value, name: &str) -> f64 {
+    j["figures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["name"] == name)
+        .unwrap_or_else(|| panic!("no figure {name}: {j}"))["value"]
+        .as_f64()
+        .unwrap()
+}
+
+/// `run --stiffness K` reports K as the desired stiffness (it used to report the
+/// scenario's default while running K).
+#[test]
+fn the_summary_desires_what_the_run_asked_for() {
+    let o = hil()
+        .args(["run", "--bus", "inproc", "--scenario", "stiffness"])
+        .args(["--preset", "whoi-cable-30", "--stiffness", "30", "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(figure(&j, "desired stiffness"), 30.0);
+    let ratio = figure(&j, "achieved / desired");
+    assert!((0.9..1.1).contains(&ratio), "{ratio}");
+}
+
+/// Two models whose names differ after a dot (`cyclo-bl0.2`, `cyclo-bl0.4`) write two sets
+/// of files; the names used to be cut at the dot, and the second run overwrote the first.
+#[test]
+fn model_names_with_dots_keep_their_files_apart() {
+    let dir = std::env::temp_dir().join(format!("jointlab-dots-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let m = sim_plant::preset("cyclo-29").unwrap();
+    for name in ["cyclo-bl0.2", "cyclo-bl0.4"] {
+        let p = dir.join(format!("{name}.toml"));
+        m.save(&p).unwrap();
+        let j = demo_json(
+            &["--scenario", "step", "--model", p.to_str().unwrap()],
+            &dir,
+        );
+        assert_eq!(j["verdict"], "ok", "{j}");
+    }
+    for name in ["cyclo-bl0.2", "cyclo-bl0.4"] {
+        for ext in ["csv", "log", "png"] {
+            let f = dir.join(format!("demo-step-{name}.{ext}"));
+            assert!(f.exists(), "{} missing", f.display());
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A scenario that did not do what it is for says so: on sumitomo-59 the damper saturates
+/// the motor, the wall never reaches its force, and the identification run never moves; on
+/// the cable drive none of this happens and nothing is said.
+#[test]
+fn scenarios_that_miss_their_purpose_say_so() {
+    let dir = std::env::temp_dir().join(format!("jointlab-warn-{}", std::process::id()));
+    let warnings = |scenario: &str, preset: &str| -> Vec<String> {
+        let j = demo_json(&["--scenario", scenario, "--preset", preset], &dir);
+        j["warnings"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{j}"))
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let has = |w: &[String], what: &str| w.iter().any(|x| x.contains(what));
+    let damper = warnings("damper", "sumitomo-59");
+    assert!(has(&damper, "at its torque limit"), "{damper:?}");
+    assert!(has(&damper, "does not emulate the damping"), "{damper:?}");
+    let wall = warnings("wall", "sumitomo-59");
+    assert!(has(&wall, "never reached its setpoint"), "{wall:?}");
+    let identify = warnings("identify", "sumitomo-59");
+    assert!(has(&identify, "hardly moved"), "{identify:?}");
+    for scenario in ["stiffness", "damper", "step", "wall", "identify"] {
+        let w = warnings(scenario, "whoi-cable-30");
+        assert!(w.is_empty(), "{scenario} on whoi-cable-30: {w:?}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -280,13 +280,13 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             lab.use_qemu_card(QemuCard::spawn(img, opts.node, false)?);
         }
         lab.supervisor.set_recovery(a.recover);
-        let stem = a
-            .out
-            .join(format!("demo-{}-{}", kind.name(), a.plant.label()));
+        // Appended, not `with_extension`: a model named `cyclo-bl0.2` must not lose its `.2`
+        // (and overwrite `cyclo-bl0.4`'s files).
+        let stem = format!("demo-{}-{}", kind.name(), a.plant.label());
         let (csv, log, png) = (
-            stem.with_extension("csv"),
-            stem.with_extension("log"),
-            stem.with_extension("png"),
+            a.out.join(format!("{stem}.csv")),
+            a.out.join(format!("{stem}.log")),
+            a.out.join(format!("{stem}.png")),
         );
         lab.recorder.write_csv(&csv)?;
         lab.recorder.write_candump(&log, "inproc")?;

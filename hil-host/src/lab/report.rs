@@ -578,6 +578,9 @@ impl Report {
         if let Some(c) = &self.caution {
             let _ = writeln!(s, "  figures {c}");
         }
+        for w in &self.figures.warnings {
+            let _ = writeln!(s, "  WARNING: {w}");
+        }
         s.push_str(&self.figures.table());
         for f in &self.files {
             let _ = writeln!(s, "  wrote {f}");
@@ -651,6 +654,7 @@ impl Report {
             "max_loss": f.max_loss,
             "figures_withheld": self.withheld,
             "figures_caution": self.caution,
+            "warnings": self.figures.warnings,
             "figures": self.figures.rows.iter().map(|(n, v, u)| json!({
                 "name": n, "value": num(*v), "unit": u,
             })).collect::<Vec<_>>(),

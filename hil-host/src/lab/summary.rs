@@ -8,6 +8,9 @@ use super::scenario::{Scenario, ScenarioKind, SETTLE_S};
 pub struct Summary {
     /// (name, value, unit) in display order.
     pub rows: Vec<(String, f64, String)>,
+    /// Where the run did not do what the scenario is for (the motor at its limit, a joint
+    /// stuck in friction, no motion to identify from): the figures are then about that.
+    pub warnings: Vec<String>,
 }
 
 impl Summary {
@@ -82,6 +85,7 @@ where
     }
     if withhold.is_none() {
         acc.figures(sc, &mut s, &mut pass)?;
+        s.warnings = acc.warnings(sc, &s);
         if matches!(
             sc.kind,
             ScenarioKind::Stiffness
@@ -205,6 +209,10 @@ struct Pass1 {
     reversals: usize,
     vmax: f64,
     travel: Span,
+    // saturation, after the settling time
+    torque_limit: f64,
+    run_rows: usize,
+    at_limit: usize,
 }
 
 impl Pass1 {
@@ -229,6 +237,9 @@ impl Pass1 {
             reversals: 0,
             vmax: 0.0,
             travel: Span::default(),
+            torque_limit: sc.gains.torque_limit,
+            run_rows: 0,
+            at_limit: 0,
         }
     }
 
@@ -240,6 +251,10 @@ impl Pass1 {
             return;
         }
         self.last_run_setpoint = Some(r.setpoint_pos_rad);
+        self.run_rows += 1;
+        if r.torque_cmd_nm.abs() >= 0.98 * self.torque_limit {
+            self.at_limit += 1;
+        }
         // Tracking of the position setpoint by the motor encoder (colocated), output rad.
         self.tracking
             .add(r.setpoint_pos_rad - r.motor_pos_rad / self.n);
@@ -287,6 +302,59 @@ impl Pass1 {
         self.travel.add(r.output_pos_rad);
     }
 
+    /// What says the run did not do what its scenario is for, from its own figures.
+    fn warnings(&self, sc: &Scenario, s: &Summary) -> Vec<String> {
+        let mut w = Vec::new();
+        let share = self.at_limit as f64 / self.run_rows.max(1) as f64;
+        if share > 0.2 {
+            w.push(format!(
+                "the motor was at its torque limit (±{:.2} N·m) on {:.0} % of the ticks: the \
+                 figures describe that limit, not the control law (ask for less, or give the \
+                 joint a stronger motor)",
+                self.torque_limit,
+                100.0 * share
+            ));
+        }
+        let ratio = s.get("achieved / desired").filter(|r| r.is_finite());
+        if let Some(r) = ratio.filter(|r| !(0.5..=2.0).contains(r)) {
+            w.push(format!(
+                "achieved / desired is {r:.3}: the joint does not emulate the {} asked for",
+                match sc.kind {
+                    ScenarioKind::Damper => "damping",
+                    _ => "stiffness",
+                }
+            ));
+        }
+        let desired = sc.desired();
+        if let Some(e) = s.get("steady force error").filter(|_| desired != 0.0) {
+            if e.abs() > 0.5 * desired.abs() {
+                w.push(format!(
+                    "the contact torque never reached its setpoint (steady error {e:.3} of \
+                     {desired:.3} N·m): the joint is stuck (static friction above what the \
+                     law commands, or the motor at its limit)"
+                ));
+            }
+        }
+        if let (Some(size), Some(e)) = (s.get("step size"), s.get("steady-state error")) {
+            if size != 0.0 && e.abs() > 0.2 * size.abs() {
+                w.push(format!(
+                    "the step ended {:.0} % short of its setpoint: the joint stuck in friction \
+                     before it got there",
+                    100.0 * e.abs() / size.abs()
+                ));
+            }
+        }
+        if sc.kind == ScenarioKind::Identify && (self.reversals < 2 || self.travel.width() < 1e-3) {
+            w.push(format!(
+                "the output hardly moved ({} velocity reversals, {:.2e} rad of travel): the \
+                 record holds too little motion to identify the plant from",
+                self.reversals,
+                self.travel.width()
+            ));
+        }
+        w
+    }
+
     fn figures<I, F>(&self, sc: &Scenario, s: &mut Summary, pass: &mut F) -> anyhow::Result<()>
     where
         F: FnMut() -> anyhow::Result<I>,
@@ -295,9 +363,9 @@ impl Pass1 {
         match sc.kind {
             ScenarioKind::Stiffness => {
                 let k = self.crank.slope();
-                s.push("desired stiffness", sc.desired, "N·m/rad (output)");
+                s.push("desired stiffness", sc.desired(), "N·m/rad (output)");
                 s.push("achieved stiffness", k, "N·m/rad (output)");
-                s.push("achieved / desired", k / sc.desired, "");
+                s.push("achieved / desired", k / sc.desired(), "");
                 s.push("loop area (work lost)", self.area, "J");
                 s.push("deflection travel", self.deflection.width(), "rad (output)");
             }
@@ -309,9 +377,9 @@ impl Pass1 {
                 }
                 // Split Coulomb (sign) from viscous by fitting τ = c·sign(ω) + B·ω.
                 let (b, c) = fit_viscous_coulomb(&xs, &ys);
-                s.push("desired damping", sc.desired, "N·m·s/rad (output)");
+                s.push("desired damping", sc.desired(), "N·m·s/rad (output)");
                 s.push("achieved damping", b, "N·m·s/rad (output)");
-                s.push("achieved / desired", b / sc.desired, "");
+                s.push("achieved / desired", b / sc.desired(), "");
                 s.push("Coulomb offset", c, "N·m (output)");
             }
             ScenarioKind::Step => {
@@ -320,7 +388,7 @@ impl Pass1 {
             }
             ScenarioKind::Wall => {
                 let m = self.force_err.n.max(1) as f64;
-                s.push("desired contact torque", sc.desired, "N·m (output)");
+                s.push("desired contact torque", sc.desired(), "N·m (output)");
                 s.push("steady force error", self.force_err_sum / m, "N·m");
                 s.push("force error RMS (last 0.5 s)", self.force_err.rms(), "N·m");
             }
