@@ -44,7 +44,7 @@ fn position_step_tracks_to_within_the_friction_band() {
     // PD against Coulomb friction stops where K·e = τc: the thesis's error band.
     let row = sim_plant::presets::row("harmonic-drive-60").unwrap();
     let tau_s = row.stiction[0].max(row.stiction[1]);
-    let band = tau_s / l.scenario.desired
+    let band = tau_s / l.scenario.desired()
         + 4.0 * std::f64::consts::TAU / model.motor.counts_per_rev.value / 60.0;
     let ss = s.get("steady-state error").unwrap();
     assert!(
