@@ -226,3 +226,70 @@ fn vcan_hil_processes_watchdog_and_recording() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The card console (`hil-host param`, `status`) against a card process on vcan0, ticked by
+/// a plant process: a set is committed and read back, the heartbeat is decoded, and a node
+/// that is not there is an error (exit 2), not a hang.
+#[test]
+fn vcan_console_reads_and_sets_a_card_process() {
+    if let Err(e) = SocketCanBus::open(IFACE) {
+        return skip(&format!("vcan0 not available ({e})"));
+    }
+    let Some(bin) = hil_host() else {
+        return skip("the hil-host binary was not found (build it first: cargo build -p hil-host)");
+    };
+    let common = ["--bus", IFACE, "--node", "6"];
+    let _card = Kill(spawn(&bin, &[&["card"][..], &common].concat()));
+    std::thread::sleep(Duration::from_millis(300));
+    let _plant = Kill(spawn(
+        &bin,
+        &[
+            &["plant"][..],
+            &common,
+            &[
+                "--preset",
+                "harmonic-drive-60",
+                "--seconds",
+                "20",
+                "--quiet",
+            ],
+        ]
+        .concat(),
+    ));
+    std::thread::sleep(Duration::from_millis(300));
+    let console = |args: &[&str]| {
+        Command::new(&bin)
+            .args(args)
+            .args(common)
+            .args(["--timeout-ms", "1000"])
+            .output()
+            .expect("run the console")
+    };
+    let set = console(&["param", "set", "torque_limit=2345"]);
+    assert!(set.status.success(), "{set:?}");
+    let get = console(&["param", "get", "torque_limit"]);
+    let out = String::from_utf8_lossy(&get.stdout);
+    assert!(out.contains("torque_limit = 2345"), "{get:?}");
+    let st = console(&["status", "--seconds", "0.5"]);
+    let out = String::from_utf8_lossy(&st.stdout);
+    assert!(st.status.success(), "{st:?}");
+    assert!(
+        out.contains("state      Disabled") && out.contains("Sensor"),
+        "{out}"
+    );
+    let none = Command::new(&bin)
+        .args([
+            "param",
+            "get",
+            "torque_limit",
+            "--bus",
+            IFACE,
+            "--node",
+            "9",
+        ])
+        .args(["--timeout-ms", "300"])
+        .output()
+        .unwrap();
+    assert_eq!(none.status.code(), Some(2), "{none:?}");
+    assert!(String::from_utf8_lossy(&none.stderr).contains("did not answer"));
+}

@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod console;
 pub mod lab;
 pub mod replay;
 pub mod workbench;
@@ -39,6 +40,12 @@ pub enum Command {
     /// Decode a candump -L log (signals with units), convert it to a recording, or put it back on a bus.
     #[command(after_help = replay::REPLAY_EXAMPLES)]
     Replay(replay::ReplayArgs),
+    /// A card's parameters: the table, active values, a set committed atomically.
+    #[command(after_help = console::PARAM_EXAMPLES)]
+    Param(console::ParamArgs),
+    /// A card's health: state, mode, fault, limits, frame rates and bus load.
+    #[command(after_help = console::STATUS_EXAMPLES)]
+    Status(console::StatusArgs),
     /// Lockstep cycles per second and bus load.
     #[command(after_help = lab::BENCH_EXAMPLES)]
     Bench(lab::BenchArgs),
@@ -141,6 +148,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plant(a) => lab::plant(a),
         Command::Supervise(a) => lab::supervise(a),
         Command::Replay(a) => replay::replay(a),
+        Command::Param(a) => console::param(a),
+        Command::Status(a) => console::status(a),
         Command::Bench(a) => lab::bench(a),
         Command::Compare(a) => workbench::compare(a),
         Command::Diagnose(a) => workbench::diagnose(a),
