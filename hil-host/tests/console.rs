@@ -116,6 +116,11 @@ fn the_command_line_reaches_the_card_and_a_missing_node_is_an_error() {
     cli(&["param", "set", "torque_limit=2000"]).unwrap();
     cli(&["param", "get", "torque_limit", "0x0302"]).unwrap();
     cli(&["status", "--seconds", "0.3"]).unwrap();
+    cli(&["status", "--follow", "--seconds", "0.3", "--every-ms", "50"]).unwrap();
+    let e = cli(&["status", "--follow", "--seconds", "0.2", "--node", "9"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no telemetry or heartbeat from node 9"), "{e}");
     let e = cli(&["param", "get", "torque_limit", "--node", "5"])
         .unwrap_err()
         .to_string();

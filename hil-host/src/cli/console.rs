@@ -78,9 +78,17 @@ pub enum ParamCommand {
 pub struct StatusArgs {
     #[command(flatten)]
     pub target: Target,
-    /// Seconds to listen.
-    #[arg(long, default_value_t = 1.0)]
-    pub seconds: f64,
+    /// Seconds to listen (default 1; with --follow, until Ctrl-C).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Stream the card's telemetry as a table, a row every --every-ms: state, mode, fault,
+    /// position, velocity, torque command, output torque, limit flags (decoded through the
+    /// protocol's DBC, with units).
+    #[arg(long)]
+    pub follow: bool,
+    /// Row interval of --follow, ms.
+    #[arg(long, default_value_t = 100, requires = "follow")]
+    pub every_ms: u64,
 }
 
 /// The parameter `s` names: a name from the table, or an id.
@@ -382,9 +390,16 @@ pub fn param(a: ParamArgs) -> Result<()> {
 
 /// Runs `status`.
 pub fn status(a: StatusArgs) -> Result<()> {
-    if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
-        bail!("--seconds must be in (0, 3600], not {}", a.seconds);
+    if let Some(s) = a
+        .seconds
+        .filter(|s| !(s.is_finite() && *s > 0.0 && *s <= 86_400.0))
+    {
+        bail!("--seconds must be in (0, 86400], not {s}");
     }
+    if a.follow {
+        return follow(&a);
+    }
+    let seconds = a.seconds.unwrap_or(1.0);
     let mut bus = open_bus(&a.target.bus).map_err(|e| anyhow!("{e}"))?;
     let name = bus.name().to_string();
     let mut c = Console::new(
@@ -392,7 +407,7 @@ pub fn status(a: StatusArgs) -> Result<()> {
         a.target.node,
         Duration::from_millis(a.target.timeout_ms),
     )?;
-    let l = c.listen(Duration::from_secs_f64(a.seconds))?;
+    let l = c.listen(Duration::from_secs_f64(seconds))?;
     println!("node {} on {name}, {:.1} s", a.target.node, l.seconds);
     match &l.heartbeat {
         Some(h) => {
@@ -422,6 +437,91 @@ pub fn status(a: StatusArgs) -> Result<()> {
     }
     if l.heartbeat.is_none() {
         bail!("no heartbeat from node {} on {name}", a.target.node);
+    }
+    Ok(())
+}
+
+/// The signals `status --follow` shows, by message: (message, signal, column title).
+const FOLLOW: [(&str, &str, &str); 7] = [
+    ("Heartbeat", "state", "state"),
+    ("Heartbeat", "mode", "mode"),
+    ("Heartbeat", "fault", "fault"),
+    ("TelemetryMotion", "position", "position"),
+    ("TelemetryMotion", "velocity", "velocity"),
+    ("TelemetryTorque", "torque_cmd", "torque_cmd"),
+    ("TelemetryTorque", "output_torque", "output_torque"),
+];
+
+/// `status --follow`: the card's latest telemetry as a streaming table.
+fn follow(a: &StatusArgs) -> Result<()> {
+    let db = jointlab_can::signals::Database::jointlab()?;
+    let mut bus = open_bus(&a.target.bus).map_err(|e| anyhow!("{e}"))?;
+    let node = a.target.node;
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let s = stop.clone();
+    let _ = ctrlc::set_handler(move || s.store(true, std::sync::atomic::Ordering::SeqCst));
+    let every = Duration::from_millis(a.every_ms.max(10));
+    let end = a.seconds.map(Duration::from_secs_f64);
+    let mut latest: Vec<String> = vec!["-".into(); FOLLOW.len()];
+    let units: Vec<String> = FOLLOW
+        .iter()
+        .map(|(m, sig, title)| {
+            let unit = db
+                .message(m)
+                .and_then(|d| d.signals.iter().find(|x| x.name == *sig))
+                .map_or("", |x| x.unit.as_str());
+            if unit.is_empty() {
+                (*title).to_string()
+            } else {
+                format!("{title} [{unit}]")
+            }
+        })
+        .collect();
+    let widths: Vec<usize> = units.iter().map(|u| u.chars().count().max(9) + 2).collect();
+    let row = |cells: &[String]| -> String {
+        cells
+            .iter()
+            .zip(&widths)
+            .map(|(c, w)| format!("{c:>w$}"))
+            .collect()
+    };
+    println!("{:>8}{}", "t [s]", row(&units));
+    let t0 = Instant::now();
+    let mut next = every;
+    let mut heard = false;
+    while !stop.load(std::sync::atomic::Ordering::Relaxed) && end.is_none_or(|e| t0.elapsed() < e) {
+        if let Some(f) = bus
+            .recv_timeout(Duration::from_millis(5))
+            .map_err(|e| anyhow!("{e}"))?
+        {
+            if let Ok(d) = db.decode(&f) {
+                if d.node == node {
+                    for (k, (m, sig, _)) in FOLLOW.iter().enumerate() {
+                        if d.message.name == *m {
+                            if let Some(v) = d.values.iter().find(|v| v.def.name == *sig) {
+                                heard = true;
+                                let text = v.text();
+                                let value = text.split_once('=').map_or("", |x| x.1);
+                                let value = value.split(' ').next().unwrap_or(value);
+                                if let Some(slot) = latest.get_mut(k) {
+                                    *slot = value.to_string();
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if t0.elapsed() >= next {
+            next += every;
+            println!("{:>8.2}{}", t0.elapsed().as_secs_f64(), row(&latest));
+        }
+    }
+    if !heard {
+        bail!(
+            "no telemetry or heartbeat from node {node} on {}",
+            bus.name()
+        );
     }
     Ok(())
 }
