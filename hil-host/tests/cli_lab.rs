@@ -278,3 +278,28 @@ fn scenarios_that_miss_their_purpose_say_so() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A gain set the card refuses (forced past the supervisor's guard) is reported as such
+/// first, with the figures withheld: it used to print a summary of zeros with the refusal on
+/// its last line.
+#[test]
+fn a_refused_gain_set_opens_the_report_and_withholds_the_figures() {
+    let o = hil()
+        .args(["run", "--bus", "inproc", "--scenario", "stiffness"])
+        .args(["--preset", "whoi-cable-30", "--stiffness", "1e6", "--force"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let verdict = out
+        .lines()
+        .skip_while(|l| l.trim().is_empty())
+        .nth(1)
+        .unwrap_or("");
+    assert!(
+        verdict.starts_with("  INCOMPLETE: the gain set was never committed: Commit refused"),
+        "{out}"
+    );
+    assert!(out.contains("figures withheld"), "{out}");
+    assert!(!out.contains("achieved stiffness"), "{out}");
+}
