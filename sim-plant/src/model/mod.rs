@@ -294,6 +294,22 @@ impl Model {
 }
 
 /// A TOML basic string literal.
+/// `s` as a TOML basic string. Written here rather than by the `toml` crate: its writer
+/// counts a run of quotes in a `u8` and overflows on 256 of them (found by fuzzing).
 fn toml_string(s: &str) -> String {
-    toml::Value::String(s.to_string()).to_string()
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            '\r' => out.push_str("\\r"),
+            c if c.is_control() => out.push_str(&format!("\\u{:04X}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }
