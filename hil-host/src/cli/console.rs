@@ -50,6 +50,19 @@ pub struct Target {
     pub timeout_ms: u64,
 }
 
+impl Target {
+    /// Opens the bus and runs `f` with a console on it.
+    fn with_console<T>(&self, f: impl FnOnce(&mut Console<'_>) -> Result<T>) -> Result<T> {
+        let mut bus = open_bus(&self.bus).map_err(|e| anyhow!("{e}"))?;
+        let mut c = Console::new(
+            bus.as_mut(),
+            self.node,
+            Duration::from_millis(self.timeout_ms),
+        )?;
+        f(&mut c)
+    }
+}
+
 /// What `param` does.
 #[derive(Debug, Subcommand)]
 pub enum ParamCommand {
@@ -339,17 +352,13 @@ pub fn param(a: ParamArgs) -> Result<()> {
                 .iter()
                 .map(|n| lookup(n))
                 .collect::<Result<Vec<_>>>()?;
-            let mut bus = open_bus(&target.bus).map_err(|e| anyhow!("{e}"))?;
-            let mut c = Console::new(
-                bus.as_mut(),
-                target.node,
-                Duration::from_millis(target.timeout_ms),
-            )?;
-            for ((id, d), n) in ids.iter().zip(&names) {
-                let v = c.get(*id)?;
-                println!("{n} = {v}  ({})", d.unit);
-            }
-            Ok(())
+            target.with_console(|c| {
+                for ((id, d), n) in ids.iter().zip(&names) {
+                    let v = c.get(*id)?;
+                    println!("{n} = {v}  ({})", d.unit);
+                }
+                Ok(())
+            })
         }
         ParamCommand::Set { pairs, target } => {
             let mut values = Vec::new();
@@ -367,17 +376,11 @@ pub fn param(a: ParamArgs) -> Result<()> {
                 }
                 values.push((id, v));
             }
-            let mut bus = open_bus(&target.bus).map_err(|e| anyhow!("{e}"))?;
-            let mut c = Console::new(
-                bus.as_mut(),
-                target.node,
-                Duration::from_millis(target.timeout_ms),
-            )?;
             // A set sequence number the card has not just seen from a supervisor.
             let seq = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0x80, |d| (d.subsec_micros() as u8) | 0x80);
-            c.set(&values, seq)?;
+            target.with_console(|c| c.set(&values, seq))?;
             println!(
                 "committed {} parameter(s) to node {}",
                 values.len(),
