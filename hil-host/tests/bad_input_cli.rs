@@ -2,24 +2,13 @@
 //! a file's contents, 2 for a bad flag), and no half-written output.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn hil() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_hil-host"))
-}
+mod common;
+use common::{hil, text};
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("jointlab-badcli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "stdout:\n{}\nstderr:\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    common::dir("badcli", name)
 }
 
 /// A 3 s PD-driven mass with viscous friction (time_s, force_N, pos_m); `cell(row)` may

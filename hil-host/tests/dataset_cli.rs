@@ -4,26 +4,12 @@
 //! lists the candidates.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn hil(dir: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_hil-host"));
-    c.current_dir(dir);
-    c
-}
+mod common;
+use common::{hil, ok, text};
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("jointlab-dataset-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "stdout:\n{}\nstderr:\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    common::dir("dataset", name)
 }
 
 /// A 3 s PD-driven mass with viscous and Coulomb friction, logged under `names` (time,
@@ -46,11 +32,6 @@ fn record(path: &Path, names: [&str; 3], seed: usize) {
         }
     }
     std::fs::write(path, s).unwrap();
-}
-
-fn ok(o: Output) -> String {
-    assert!(o.status.success(), "{}", text(&o));
-    String::from_utf8(o.stdout).unwrap()
 }
 
 #[test]
@@ -77,12 +58,14 @@ fn a_dataset_file_gives_what_its_flags_give() {
         "--output",
         "pos_mm",
     ];
-    let by_flags = ok(hil(&d)
+    let by_flags = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "data/run.csv", "--json"])
         .args(flags)
         .output()
         .unwrap());
-    let by_file = ok(hil(&d)
+    let by_file = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "data/run.toml", "--json"])
         .output()
         .unwrap());
@@ -92,7 +75,8 @@ fn a_dataset_file_gives_what_its_flags_give() {
 
     // `fit` validates on the dataset's `validate`; `--validate` overrides it.
     let fit = |args: &[&str], out: &str| {
-        let s = ok(hil(&d)
+        let s = ok(hil()
+            .current_dir(&d)
             .arg("fit")
             .args(args)
             .args(["--add", "coulomb", "--json", "--save-model", out])
@@ -116,7 +100,8 @@ fn a_dataset_file_gives_what_its_flags_give() {
         std::fs::read_to_string(d.join("b.toml")).unwrap()
     );
     // A flag wins over the file's value.
-    let e = ok(hil(&d)
+    let e = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "data/run.toml", "--json", "--input-gain", "1"])
         .output()
         .unwrap());
@@ -127,19 +112,22 @@ fn a_dataset_file_gives_what_its_flags_give() {
 fn a_header_with_unit_suffixes_needs_no_column_flags() {
     let d = dir("detect");
     record(&d.join("run.csv"), ["t_s", "force_N", "q_mm"], 0);
-    let named = ok(hil(&d)
+    let named = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "run.csv", "--json"])
         .args(["--time", "t_s", "--input", "force_N", "--output", "q_mm"])
         .output()
         .unwrap());
-    let found = ok(hil(&d)
+    let found = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "run.csv", "--json"])
         .output()
         .unwrap());
     assert_eq!(found, named);
     // A dataset file that names only the file.
     std::fs::write(d.join("min.toml"), "file = \"run.csv\"\n").unwrap();
-    let min = ok(hil(&d)
+    let min = ok(hil()
+        .current_dir(&d)
         .args(["diagnose", "min.toml", "--json"])
         .output()
         .unwrap());
@@ -205,7 +193,7 @@ fn what_cannot_be_settled_is_an_error_that_helps() {
         ),
     ];
     for (args, code, says) in cases {
-        let o = hil(&d).args(args).output().unwrap();
+        let o = hil().current_dir(&d).args(args).output().unwrap();
         assert_eq!(o.status.code(), Some(code), "{args:?}: {}", text(&o));
         let err = String::from_utf8_lossy(&o.stderr);
         for s in says {
@@ -223,7 +211,8 @@ fn models_are_kept_and_never_silently_replaced() {
     let d = dir("keep");
     record(&d.join("run.csv"), ["time_s", "force_N", "q_mm"], 0);
     let fit = |extra: &[&str]| {
-        ok(hil(&d)
+        ok(hil()
+            .current_dir(&d)
             .args(["fit", "run.csv", "--add", "coulomb"])
             .args(extra)
             .output()
@@ -249,7 +238,8 @@ fn models_are_kept_and_never_silently_replaced() {
         .unwrap()
         .starts_with("# mine"));
 
-    let auto = ok(hil(&d)
+    let auto = ok(hil()
+        .current_dir(&d)
         .args([
             "diagnose",
             "run.csv",
@@ -267,7 +257,8 @@ fn models_are_kept_and_never_silently_replaced() {
         !d.join("rep/auto_error.png").exists(),
         "PNGs only with --png"
     );
-    ok(hil(&d)
+    ok(hil()
+        .current_dir(&d)
         .args([
             "compare",
             "run.csv",

@@ -4,29 +4,12 @@
 //! filters and timestamp modes; clear errors.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn hil() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_hil-host"))
-}
+mod common;
+use common::{hil, ok, text};
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("jointlab-replay-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "stdout:\n{}\nstderr:\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn ok(o: Output) -> String {
-    assert!(o.status.success(), "{}", text(&o));
-    String::from_utf8(o.stdout).unwrap()
+    common::dir("replay", name)
 }
 
 /// A lab step run on harmonic-drive-60: its recorder's CSV and its candump log.

@@ -179,7 +179,7 @@ fn diagnose_fit_and_compare_end_to_end() {
     assert!((m.inertia.value - 2.0).abs() < 0.1, "m {}", m.inertia.value);
     assert!(fc.sigma.unwrap() > 0.0);
 
-    // compare writes the HTML report with the five plots inlined
+    // compare writes the HTML report with its eight plots inlined
     let rep = d.join("report");
     run(Cli::parse_from([
         "hil-host",
@@ -197,12 +197,15 @@ fn diagnose_fit_and_compare_end_to_end() {
     ]))
     .unwrap();
     let html = std::fs::read_to_string(rep.join("report.html")).unwrap();
-    assert_eq!(html.matches("<svg").count(), 5);
+    assert_eq!(html.matches("<svg").count(), 8);
     for id in [
         "overlay",
         "residual_time",
+        "residual_acf",
+        "input_ccf",
         "residual_velocity",
         "residual_position",
+        "residual_position_folded",
         "residual_spectrum",
     ] {
         assert!(

@@ -91,9 +91,10 @@ pub struct DataArgs {
     /// Use only the rows up to this time (s). A --validate file is used whole.
     #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub to: Option<f64>,
-    /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both fitted.
+    /// Model TOML; without it the baseline is a rigid inertia with viscous friction, both
+    /// fitted. `compare` takes several (`--model a.toml --model b.toml`) and overlays them.
     #[arg(long)]
-    pub model: Option<PathBuf>,
+    pub model: Vec<PathBuf>,
     /// Differentiator cut-off, Hz (default: a tenth of the sample rate, at most 100 Hz; a transmission mode above that needs a higher one).
     #[arg(long)]
     pub cutoff: Option<f64>,
@@ -192,9 +193,24 @@ impl DataArgs {
         let cols = d.columns(&d.file, true)?;
         load_prepared(&d.file, &cols, self.cutoff)
     }
+    /// The one model file a command other than `compare` takes.
+    fn model_file(&self) -> anyhow::Result<Option<&PathBuf>> {
+        match self.model.as_slice() {
+            [] => Ok(None),
+            [f] => Ok(Some(f)),
+            _ => Err(anyhow::anyhow!(
+                "--model is given {} times: only `compare` takes several models",
+                self.model.len()
+            )),
+        }
+    }
     /// The model, with its free parameters fitted to `p`.
     fn model(&self, p: &Prepared) -> anyhow::Result<Model> {
-        let mut m = match &self.model {
+        self.model_fitted(self.model_file()?, p)
+    }
+    /// The model in `file` (the baseline if none), with its free parameters fitted to `p`.
+    fn model_fitted(&self, file: Option<&PathBuf>, p: &Prepared) -> anyhow::Result<Model> {
+        let mut m = match file {
             Some(f) => Model::load(f)?,
             None => Model::baseline(),
         };
@@ -406,88 +422,206 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let (p, resampled) = a.data.recording()?;
     let csv = a.data.csv()?;
     let cols = a.data.columns(true)?;
-    let model = match (&a.data.model, a.refit) {
-        (Some(f), false) => Model::load(f)?,
-        _ => a.data.model(&p)?,
-    };
     let mode = match a.residual {
         ResidualArg::Equation => Mode::Equation,
         ResidualArg::Output => Mode::Output,
     };
-    let res = match mode {
-        Mode::Equation => residual::equation_error(&model, &p),
-        Mode::Output => residual::output_error(&model, &p),
-    };
-    if let Some(k) = res.predicted.iter().position(|y| !y.is_finite()) {
-        bail!(
-            "--residual output: the model's simulation from the measured input diverged at \
-             t = {:.4} s — the model is not stable open loop on this input (a closed-loop \
-             record needs its controller around the model); the equation-error residual \
-             (the default) has no such limit",
-            res.time.get(k).copied().unwrap_or(f64::NAN)
-        );
-    }
-    let m = metrics::compute(&res, a.period);
-    for (what, value) in [("fit %", m.fit_percent), ("RMS", m.rms)] {
-        if !value.is_finite() {
-            return Err(anyhow::Error::new(FitError::NonFiniteScore {
-                what,
-                record: "estimation",
-                value,
-            })
-            .context(csv.display().to_string()));
-        }
-    }
-    let rec_units = if mode == Mode::Equation {
-        data::input_unit(&cols)
+    // The models in order: each file as it is (or refitted on this record with --refit), the
+    // fitted baseline when none is named.
+    let files: Vec<Option<&PathBuf>> = if a.data.model.is_empty() {
+        vec![None]
     } else {
-        jointlab_workbench::units::unit_of(&cols.output)?
-            .0
-            .to_string()
+        a.data.model.iter().map(Some).collect()
     };
-    let charts = report::charts(&res, &m, &rec_units);
-    let params = refine::param_rows(&model);
-    let ptext = param_text(&params);
-    let html = report::write(
-        &a.report,
-        &format!("compare: {} vs {}", model.name, csv.display()),
-        &[
-            (
-                "metrics".into(),
-                match &resampled {
-                    Some(r) => format!("{}\n{}", r.note(&csv), m.to_text()),
-                    None => m.to_text(),
-                },
-            ),
-            ("model parameters".into(), ptext.clone()),
-        ],
-        &charts,
-        a.png,
-    )?;
-    if a.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "metrics": m,
-                "params": params,
-                "report": html,
-                "resampled": resampled,
-            })
-        );
-    } else {
-        println!("model: {}\n{}", model.name, ptext);
-        print!("{}", m.to_text());
-        if mode == Mode::Output && m.fit_percent < 0.0 {
-            println!(
-                "note: fit below 0 %: the model simulated open loop from the measured input \
-                 drifts away from the record. On closed-loop data (a controller closed the \
-                 loop while recording) the output error needs that controller around the \
-                 model; the equation error (the default) does not."
+    let mut models = Vec::new();
+    for f in &files {
+        let model = match (f, a.refit) {
+            (Some(f), false) => Model::load(f)?,
+            _ => a.data.model_fitted(*f, &p)?,
+        };
+        let res = match mode {
+            Mode::Equation => residual::equation_error(&model, &p),
+            Mode::Output => residual::output_error(&model, &p),
+        };
+        if let Some(k) = res.predicted.iter().position(|y| !y.is_finite()) {
+            bail!(
+                "--residual output: model `{}`'s simulation from the measured input diverged \
+                 at t = {:.4} s — the model is not stable open loop on this input (a \
+                 closed-loop record needs its controller around the model); the \
+                 equation-error residual (the default) has no such limit",
+                model.name,
+                res.time.get(k).copied().unwrap_or(f64::NAN)
             );
         }
+        let m = metrics::compute(&res, a.period);
+        for (what, value) in [("fit %", m.fit_percent), ("RMS", m.rms)] {
+            if !value.is_finite() {
+                return Err(anyhow::Error::new(FitError::NonFiniteScore {
+                    what,
+                    record: "estimation",
+                    value,
+                })
+                .context(csv.display().to_string()));
+            }
+        }
+        models.push((model, res, m));
+    }
+    // Two files may hold models of one name: the legend tells them apart by file.
+    let names: Vec<String> = models
+        .iter()
+        .zip(&files)
+        .map(|((model, _, _), f)| {
+            let twice = models.iter().filter(|o| o.0.name == model.name).count() > 1;
+            match f {
+                Some(f) if twice => format!("{} ({})", model.name, f.display()),
+                _ => model.name.clone(),
+            }
+        })
+        .collect();
+    let position_unit = jointlab_workbench::units::unit_of(&cols.output)?
+        .0
+        .to_string();
+    let units = report::Units {
+        signal: if mode == Mode::Equation {
+            data::input_unit(&cols)
+        } else {
+            position_unit.clone()
+        },
+        position: position_unit,
+    };
+    let compared: Vec<report::Compared<'_>> = models
+        .iter()
+        .zip(&names)
+        .map(|((_, res, m), name)| report::Compared {
+            name,
+            residual: res,
+            metrics: m,
+        })
+        .collect();
+    let finding = report::finding(&compared);
+    let charts = report::charts(&compared, &units);
+    let mut sections = Vec::new();
+    if let Some(r) = &resampled {
+        sections.push(("resampling".to_string(), r.note(&csv)));
+    }
+    for ((model, _, m), name) in models.iter().zip(&names) {
+        sections.push((format!("{name}: metrics"), m.to_text()));
+        sections.push((
+            format!("{name}: parameters"),
+            param_text(&refine::param_rows(model)),
+        ));
+    }
+    let mut inputs = vec![a.data.file.clone(), csv.clone()];
+    inputs.extend(a.data.model.iter().cloned());
+    let provenance =
+        report::page::Provenance::now(concat!("hil-host ", env!("CARGO_PKG_VERSION")), &inputs)?;
+    let model_texts: Vec<(String, String)> = models
+        .iter()
+        .zip(&names)
+        .map(|((model, _, _), name)| (name.clone(), model.to_sim().to_toml_string()))
+        .collect();
+    let zoom = zoom_view(&compared, &units);
+    let html = report::page::write(
+        &a.report,
+        &report::page::Page {
+            title: &format!("compare: {} on {}", names.join(", "), csv.display()),
+            finding: &finding,
+            provenance: &provenance,
+            sections: &sections,
+            charts: &charts,
+            zoom: Some(&zoom),
+            models: &model_texts,
+        },
+        a.png,
+    )?;
+    let (model, _, m) = &models[0];
+    if a.json {
+        let mut j = serde_json::json!({
+            "metrics": m,
+            "params": refine::param_rows(model),
+            "report": html,
+            "resampled": resampled,
+        });
+        if models.len() > 1 {
+            j["models"] = models
+                .iter()
+                .zip(&names)
+                .map(|((model, _, m), name)| {
+                    serde_json::json!({
+                        "name": name,
+                        "metrics": m,
+                        "params": refine::param_rows(model),
+                    })
+                })
+                .collect();
+        }
+        println!("{j}");
+    } else {
+        for ((model, _, m), name) in models.iter().zip(&names) {
+            println!("model: {name}\n{}", param_text(&refine::param_rows(model)));
+            print!("{}", m.to_text());
+            if mode == Mode::Output && m.fit_percent < 0.0 {
+                println!(
+                    "note: fit below 0 %: the model simulated open loop from the measured \
+                     input drifts away from the record. On closed-loop data (a controller \
+                     closed the loop while recording) the output error needs that controller \
+                     around the model; the equation error (the default) does not."
+                );
+            }
+        }
+        println!("finding: {finding}");
         println!("report: {}", html.display());
     }
     Ok(())
+}
+
+/// The report's zoomable view: the measurement and each model's prediction, and each model's
+/// residual, over time (at most 200 000 samples: a longer record is thinned evenly).
+fn zoom_view(models: &[report::Compared<'_>], units: &report::Units) -> report::page::ZoomView {
+    use report::page::{Panel, Trace, ZoomView};
+    let Some(first) = models.first() else {
+        return ZoomView {
+            x_label: "time [s]".into(),
+            time: Vec::new(),
+            panels: Vec::new(),
+        };
+    };
+    let n = first.residual.time.len();
+    let step = n.div_ceil(200_000).max(1);
+    let thin = |v: &[f64]| v.iter().copied().step_by(step).collect::<Vec<_>>();
+    let trace = |name: &str, y: &[f64], reference| Trace {
+        name: name.to_string(),
+        y: y.iter().step_by(step).map(|v| *v as f32).collect(),
+        reference,
+    };
+    let what = if first.residual.mode == Mode::Equation {
+        "input"
+    } else {
+        "position"
+    };
+    let mut top = vec![trace("measured", &first.residual.measured, true)];
+    top.extend(
+        models
+            .iter()
+            .map(|c| trace(c.name, &c.residual.predicted, false)),
+    );
+    ZoomView {
+        x_label: "time [s]".into(),
+        time: thin(&first.residual.time),
+        panels: vec![
+            Panel {
+                y_label: format!("{what} [{}]", units.signal),
+                series: top,
+            },
+            Panel {
+                y_label: format!("residual [{}]", units.signal),
+                series: models
+                    .iter()
+                    .map(|c| trace(c.name, &c.residual.residual, false))
+                    .collect(),
+            },
+        ],
+    }
 }
 
 /// A model's parameters ± 1σ, one per line, for the HTML reports.
@@ -618,55 +752,96 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     let table = auto_text(&run.steps);
     let mut report_path = None;
     if let Some(dir) = &a.report {
-        let mut series = vec![Series {
-            name: "estimation RMS".into(),
-            points: run
-                .steps
+        let mut series = vec![Series::line(
+            "estimation RMS",
+            run.steps
                 .iter()
                 .map(|s| (s.step as f64, s.score.rms))
                 .collect(),
-            scatter: false,
-        }];
+        )];
         if val.is_some() {
-            series.push(Series {
-                name: "validation RMS".into(),
-                points: run
-                    .steps
+            series.push(Series::line(
+                "validation RMS",
+                run.steps
                     .iter()
                     .filter_map(|s| s.validation.map(|v| (s.step as f64, v.rms)))
                     .collect(),
-                scatter: false,
-            });
+            ));
         }
         let chart = Chart {
             id: "auto_error".into(),
             title: "equation-error RMS after each added effect".into(),
             x_label: "step".into(),
-            y_label: "RMS".into(),
+            y_label: format!("RMS [{}]", data::input_unit(&a.data.columns(true)?)),
             series,
         };
-        let ptext = param_text(&refine::param_rows(&model));
         let res = residual::equation_error(&model, &p);
         let m = metrics::compute(&res, None);
+        let cols = a.data.columns(true)?;
+        let units = report::Units {
+            signal: data::input_unit(&cols),
+            position: jointlab_workbench::units::unit_of(&cols.output)?
+                .0
+                .to_string(),
+        };
+        let compared = [report::Compared {
+            name: &model.name,
+            residual: &res,
+            metrics: &m,
+        }];
         let mut charts = vec![chart];
-        charts.extend(report::charts(
-            &res,
-            &m,
-            &data::input_unit(&a.data.columns(true)?),
-        ));
-        report_path = Some(report::write(
+        charts.extend(report::charts(&compared, &units));
+        let added: Vec<&str> = run
+            .steps
+            .iter()
+            .filter_map(|s| s.added.as_deref())
+            .collect();
+        let finding = format!(
+            "Added {} and stopped: {}. Final diagnosis: {} {}",
+            if added.is_empty() {
+                "nothing".to_string()
+            } else {
+                added.join(", then ")
+            },
+            run.stop,
+            run.last.verdict.text,
+            report::finding(&compared)
+        );
+        let csv = a.data.csv()?;
+        let mut inputs = vec![a.data.file.clone(), csv];
+        inputs.extend(a.data.model.iter().cloned());
+        if let Some(v) = a.data.validate_file(a.validate.as_ref())? {
+            inputs.push(v.clone());
+            if dataset::is_dataset(&v) {
+                inputs.push(a.data.dataset_of(&v)?.file);
+            }
+        }
+        let provenance = report::page::Provenance::now(
+            concat!("hil-host ", env!("CARGO_PKG_VERSION")),
+            &inputs,
+        )?;
+        report_path = Some(report::page::write(
             dir,
-            "diagnose --auto",
-            &[
-                ("steps".into(), table.clone()),
-                (
-                    "final diagnosis".into(),
-                    format!("stopped: {}\n{}", run.stop, run.last.to_text()),
-                ),
-                ("final model".into(), ptext),
-                ("final metrics".into(), m.to_text()),
-            ],
-            &charts,
+            &report::page::Page {
+                title: "diagnose --auto",
+                finding: &finding,
+                provenance: &provenance,
+                sections: &[
+                    ("steps".into(), table.clone()),
+                    (
+                        "final diagnosis".into(),
+                        format!("stopped: {}\n{}", run.stop, run.last.to_text()),
+                    ),
+                    (
+                        "final model".into(),
+                        param_text(&refine::param_rows(&model)),
+                    ),
+                    ("final metrics".into(), m.to_text()),
+                ],
+                charts: &charts,
+                zoom: Some(&zoom_view(&compared, &units)),
+                models: &[(model.name.clone(), model.to_sim().to_toml_string())],
+            },
             a.png,
         )?);
     }
@@ -813,7 +988,7 @@ fn fit_advice(r: &FitReport, load_encoder: bool, model_file: &Path) -> Option<St
 pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     let save = model_path(a.save_model.as_ref(), "fitted-model");
     let (p, resampled) = a.data.recording()?;
-    let mut model = match &a.data.model {
+    let mut model = match a.data.model_file()? {
         Some(f) => Model::load(f)?,
         None => Model::baseline(),
     };
@@ -834,7 +1009,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     // A model file's own values, scored before `fit` refits them: "before" is the model
     // refitted on this record (the best it does without the new effect), which is not what
     // `compare --model` printed for a model fitted on another record.
-    let as_given = a.data.model.as_ref().map(|_| AsGiven {
+    let as_given = a.data.model_file()?.map(|_| AsGiven {
         estimation: refine::score(&model, &p),
         validation: val.as_ref().map(|v| refine::score(&model, v)),
     });

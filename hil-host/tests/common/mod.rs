@@ -1,0 +1,39 @@
+//! What the command-line tests share: the built `hil-host`, a scratch directory per test, and
+//! a failed command's output in the assertion message.
+#![allow(dead_code)] // each test crate uses its own subset
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The `hil-host` binary cargo built for these tests.
+pub fn hil() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hil-host"))
+}
+
+/// A fresh scratch directory `jointlab-<suite>-<pid>-<name>` under the system's temp dir.
+pub fn dir(suite: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("jointlab-{suite}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A command's stdout and stderr, for an assertion message.
+pub fn text(o: &Output) -> String {
+    format!(
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// The stdout of a command that must succeed.
+pub fn ok(o: Output) -> String {
+    assert!(o.status.success(), "{}", text(&o));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+/// The repository's root (shipped datasets and data live there).
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
