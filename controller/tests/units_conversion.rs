@@ -251,20 +251,22 @@ fn guard_thesis_numbers() {
     assert!(pd_stability(0.0, be, i, t, DEFAULT_MARGIN).is_ok());
 }
 
-/// Rigid rotor, ZOH, τ_k = −Ke·θ_k − Be(θ_k − θ_{k−1})/T; true if it decays.
-fn simulate_stable(kp: f64, kd: f64) -> bool {
+/// Rigid rotor, ZOH, τ_k = −Ke·θ_k − Be(θ_k − θ_{k−1})/T: `Some(true)` if it decays to 10⁻³,
+/// `Some(false)` if it grows past 10⁶, `None` if 50 000 steps settle neither (a lightly
+/// damped loop near the boundary, where the simulation is no evidence either way).
+fn simulate_stable(kp: f64, kd: f64) -> Option<bool> {
     // normalised: I = 1, T = 1 ⇒ Ke = kp, Be = kd
     let (mut th, mut w, mut prev) = (1.0f64, 0.0f64, 1.0f64);
-    for _ in 0..20000 {
+    for _ in 0..50_000 {
         let tau = -kp * th - kd * (th - prev);
         prev = th;
         th += w + 0.5 * tau;
         w += tau;
         if !th.is_finite() || th.abs() > 1e6 {
-            return false;
+            return Some(false);
         }
     }
-    th.abs() < 1e-3 && w.abs() < 1e-3
+    (th.abs() < 1e-3 && w.abs() < 1e-3).then_some(true)
 }
 
 proptest! {
@@ -277,8 +279,8 @@ proptest! {
         let bound = 2.0 * kd * (2.0 - kd) / (2.0 + kd);
         let inside = kd < 2.0 && kp < bound;
         let near = (kp / bound - 1.0).abs() < 0.03 || (kd - 2.0).abs() < 0.03 || bound <= 0.0 && kp < 0.03;
-        if !near {
-            prop_assert_eq!(simulate_stable(kp, kd), inside, "kp {} kd {} bound {}", kp, kd, bound);
+        if let (false, Some(stable)) = (near, simulate_stable(kp, kd)) {
+            prop_assert_eq!(stable, inside, "kp {} kd {} bound {}", kp, kd, bound);
         }
     }
 

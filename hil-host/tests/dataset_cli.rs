@@ -55,6 +55,8 @@ fn a_dataset_file_gives_what_its_flags_give() {
         "cmd_V",
         "--input-gain",
         "12.5",
+        "--input-unit",
+        "N",
         "--output",
         "pos_mm",
     ];
@@ -270,4 +272,93 @@ fn models_are_kept_and_never_silently_replaced() {
         .output()
         .unwrap());
     assert!(d.join("old/report.html").exists());
+}
+
+/// Units reach every output: `--json` names them (with a schema version), a record in
+/// millimetres is a linear axis whose model file and parameters speak kg, N and N·s/m, the
+/// text prints engineering numbers, and a linear model given a joint's record is refused.
+#[test]
+fn units_reach_the_json_the_model_file_and_the_text() {
+    let d = dir("units");
+    record(&d.join("lin.csv"), ["time_s", "cmd_V", "pos_mm"], 0);
+    let fit = |extra: &[&str]| {
+        hil()
+            .current_dir(&d)
+            .args(["fit", "lin.csv", "--input", "cmd_V", "--input-gain", "12.5"])
+            .args(["--input-unit", "N"])
+            .args(["--add", "coulomb", "--save-model", "lin.toml"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let j: serde_json::Value = serde_json::from_str(&ok(fit(&["--json"]))).unwrap();
+    assert_eq!(j["schema_version"], 1);
+    assert_eq!(j["units"]["input"], "N");
+    assert_eq!(j["units"]["position"], "m");
+    assert_eq!(j["units"]["velocity"], "m/s");
+    assert_eq!(j["units"]["residual"], "N");
+    let units: Vec<(String, String)> = j["report"]["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                format!(
+                    "{}.{}",
+                    p["owner"].as_str().unwrap(),
+                    p["name"].as_str().unwrap()
+                ),
+                p["unit"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    for (param, unit) in [
+        ("inertia.inertia", "kg"),
+        ("viscous.damping", "N·s/m"),
+        ("coulomb.torque", "N"),
+    ] {
+        assert!(
+            units.contains(&(param.to_string(), unit.to_string())),
+            "{param} in {unit}: {units:?}"
+        );
+    }
+    let model = std::fs::read_to_string(d.join("lin.toml")).unwrap();
+    assert!(model.contains("axis = \"linear\""), "{model}");
+    assert!(
+        model.contains("# kg") && !model.contains("kg·m²"),
+        "{model}"
+    );
+
+    // Text: 4 significant digits, no `9.7351e0`.
+    let shown = ok(fit(&[]));
+    let exp = shown
+        .split_whitespace()
+        .find(|w| w.contains("e0") || w.contains("e-1") || w.contains("e1"));
+    assert_eq!(exp, None, "{shown}");
+    assert!(
+        shown.contains(" kg\n") && shown.contains(" N·s/m\n"),
+        "{shown}"
+    );
+
+    // The same motion logged in radians is a joint's record: the linear model is refused.
+    record(&d.join("rot.csv"), ["time_s", "cmd_V", "pos_rad"], 0);
+    let o = hil()
+        .current_dir(&d)
+        .args([
+            "compare",
+            "rot.csv",
+            "--input",
+            "cmd_V",
+            "--input-gain",
+            "12.5",
+        ])
+        .args(["--model", "lin.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("for a linear axis") && err.contains("rot.csv"),
+        "{err}"
+    );
 }

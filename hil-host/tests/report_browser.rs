@@ -140,6 +140,12 @@ fn the_compare_report_renders_in_a_browser_with_every_plot_drawn() {
         assert!(html.contains(term), "the glossary explains {term}");
     }
 
+    in_browser(&d, &page, 2, 8);
+}
+
+/// Open `page` in headless Chromium: no console message, `panels` zoom panels drawn, `charts`
+/// SVG charts, and each of them holding curves on a screenshot of the whole page.
+fn in_browser(d: &Path, page: &Path, panels: usize, charts: usize) {
     let Some(chrome) = chromium() else {
         assert!(
             std::env::var("JOINTLAB_REQUIRE_BROWSER").as_deref() != Ok("1"),
@@ -149,27 +155,27 @@ fn the_compare_report_renders_in_a_browser_with_every_plot_drawn() {
         return;
     };
     let profile = d.join("profile");
-    let (dom, console) = browse(&chrome, &page, &profile, 1500, "--dump-dom");
+    let (dom, console) = browse(&chrome, page, &profile, 1500, "--dump-dom");
     assert!(console.is_empty(), "console messages: {console:#?}");
     assert_eq!(body_attr(&dom, "data-js-errors"), None);
     assert_eq!(
-        body_attr(&dom, "data-rendered").as_deref(),
-        Some("2"),
-        "two zoom panels"
+        body_attr(&dom, "data-rendered"),
+        Some(panels.to_string()),
+        "zoom panels"
     );
     let layout = &dom[dom.find("<pre id=\"layout\"").unwrap()..];
     let layout = &layout[layout.find('>').unwrap() + 1..layout.find("</pre>").unwrap()];
     let rects: Vec<Rect> = serde_json::from_str(layout).unwrap();
     let canvases = rects.iter().filter(|r| r.what == "canvas").count();
     let svgs = rects.iter().filter(|r| r.what == "svg").count();
-    assert_eq!((canvases, svgs), (2, 8), "{rects:?}");
+    assert_eq!((canvases, svgs), (panels, charts), "{rects:?}");
 
     // Screenshot the whole page at once and look inside each plot.
     let height = rects.iter().map(|r| r.y + r.h).max().unwrap() + 50;
     let shot = d.join("shot.png");
     let (_, console) = browse(
         &chrome,
-        &page,
+        page,
         &profile,
         height,
         &format!("--screenshot={}", shot.display()),
@@ -204,4 +210,38 @@ fn the_compare_report_renders_in_a_browser_with_every_plot_drawn() {
             r.h
         );
     }
+}
+
+#[test]
+fn the_lab_report_renders_in_a_browser_with_every_plot_drawn() {
+    let d = dir("browser", "lab");
+    let out = ok(hil()
+        .current_dir(&d)
+        .args([
+            "demo",
+            "--scenario",
+            "step",
+            "--seconds",
+            "1",
+            "--report",
+            "rep",
+        ])
+        .output()
+        .unwrap());
+    let page = d.join("rep/demo-step-whoi-cable-30/report.html");
+    assert!(
+        out.contains("wrote rep/demo-step-whoi-cable-30/report.html"),
+        "{out}"
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    // The verdict is the finding; the recording it plots is listed with its hash.
+    let finding = html
+        .find("Finding.</b> OK: ran all ")
+        .expect("the verdict first");
+    assert!(finding < html.find("<svg").unwrap());
+    let csv = d.join("out/demo-step-whoi-cable-30.csv");
+    let sum = Command::new("sha256sum").arg(&csv).output().unwrap();
+    let sum = String::from_utf8(sum.stdout).unwrap();
+    assert!(html.contains(sum.split_whitespace().next().unwrap()));
+    in_browser(&d, &page, 3, 3);
 }

@@ -57,6 +57,7 @@ __all__ = [
     "FitResult",
     "AutoResult",
     "CompareResult",
+    "Units",
 ]
 
 
@@ -132,6 +133,8 @@ class Diagnosis:
     untestable: list
     notes: list
     resampled: Optional[Resampled]
+    schema_version: Optional[int] = None
+    units: Optional[Units] = None
     json: dict = dataclasses.field(repr=False, compare=False, default_factory=dict)
 
     @classmethod
@@ -145,6 +148,7 @@ class Diagnosis:
             candidates=[_build(Candidate, c) for c in d["candidates"]],
             verdict=_build(Verdict, d["verdict"]),
             resampled=_resampled(d["resampled"]),
+            units=_units(d.get("units")),
             json=raw,
         )
 
@@ -169,12 +173,27 @@ class Score:
 
 @dataclass(frozen=True)
 class Param:
-    """One fitted parameter ± 1σ."""
+    """One fitted parameter ± 1σ, in ``unit`` (as the model's axis names it: N·s/m on a
+    linear axis, N·m·s/rad on a joint)."""
 
     owner: str
     name: str
     value: float
     sigma: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class Units:
+    """The units of a record's signals, and of every number reported about it (``residual``
+    is the residual's, RMS's and noise floor's)."""
+
+    time: str
+    input: str
+    position: str
+    velocity: str
+    acceleration: str
+    residual: str
 
 
 @dataclass(frozen=True)
@@ -205,6 +224,10 @@ def _resampled(d):
     return None if d is None else _build(Resampled, d)
 
 
+def _units(d):
+    return None if d is None else _build(Units, d)
+
+
 @dataclass(frozen=True)
 class FitResult:
     """What ``fit --json`` prints (its ``model_file`` is ``model``, to ``save``)."""
@@ -213,6 +236,8 @@ class FitResult:
     as_given: Optional[AsGiven]
     resampled: Optional[Resampled]
     model: Model
+    schema_version: int
+    units: Units
     json: dict = dataclasses.field(repr=False, compare=False, default_factory=dict)
 
     def to_json(self) -> dict:
@@ -244,6 +269,8 @@ class AutoResult:
     final: Diagnosis
     model: Model
     resampled: Optional[Resampled]
+    schema_version: int
+    units: Units
     json: dict = dataclasses.field(repr=False, compare=False, default_factory=dict)
 
     def to_json(self) -> dict:
@@ -258,6 +285,8 @@ class CompareResult:
     metrics: dict
     params: list
     resampled: Optional[Resampled]
+    schema_version: int
+    units: Units
     time: np.ndarray = dataclasses.field(repr=False)
     measured: np.ndarray = dataclasses.field(repr=False)
     predicted: np.ndarray = dataclasses.field(repr=False)
@@ -272,6 +301,7 @@ class CompareResult:
 # Fields a JSON object may leave out (serde skips them when empty).
 _OPTIONAL = {
     Verdict: {"experiment"},
+    Diagnosis: {"schema_version", "units"},  # absent in --auto's "final"
     AutoStep: {"replaced", "chosen_over"},
 }
 
@@ -502,6 +532,8 @@ def fit(
         as_given=as_given,
         resampled=_resampled(d["resampled"]),
         model=fitted,
+        schema_version=d["schema_version"],
+        units=_units(d["units"]),
         json=d,
     )
 
@@ -550,6 +582,8 @@ def auto(
         final=Diagnosis._of(d["final"]),
         model=final,
         resampled=_resampled(d["resampled"]),
+        schema_version=d["schema_version"],
+        units=_units(d["units"]),
         json=d,
     )
 
@@ -584,6 +618,8 @@ def compare(
         metrics=d["metrics"],
         params=[_build(Param, p) for p in d["params"]],
         resampled=_resampled(d["resampled"]),
+        schema_version=d["schema_version"],
+        units=_units(d["units"]),
         time=np.asarray(series["time"]),
         measured=np.asarray(series["measured"]),
         predicted=np.asarray(series["predicted"]),

@@ -27,6 +27,7 @@ use jointlab_workbench::metrics;
 use jointlab_workbench::model;
 use jointlab_workbench::refine;
 use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
+use jointlab_workbench::schema;
 
 create_exception!(
     jointlab,
@@ -412,9 +413,17 @@ fn finite_score(rec: &Recording, fit_percent: f64, rms: f64) -> PyResult<()> {
     Ok(())
 }
 
+/// `schema_version` and the record's units into `j`, as the CLI's `--json` has them.
+fn stamp(j: &mut serde_json::Value, rec: &Recording, mode: Mode) -> PyResult<()> {
+    let units = schema::RecordUnits::of(&rec.inner.columns, mode).map_err(value_error)?;
+    schema::stamp(j, &units);
+    Ok(())
+}
+
 /// `model` (or the baseline) with its free parameters fitted to `p`, as `diagnose` starts.
 fn fitted(rec: &Recording, m: Option<&Model>, p: &Prepared) -> PyResult<model::Model> {
     let mut m = m.map_or_else(model::Model::baseline, |m| m.inner.clone());
+    m.on_axis(p.axis).map_err(model_error)?;
     if m.params().iter().any(|q| q.free) {
         refine::refit_all(&mut m, p).map_err(|e| fit_error("fitting the free parameters", e))?;
     }
@@ -441,6 +450,7 @@ fn py_diagnose(
         let m = fitted(rec, model, &p)?;
         let mut j = diagnose::diagnose(&m, &p, &opts).to_json();
         j["resampled"] = json!(rec.inner.resampled);
+        stamp(&mut j, rec, Mode::Equation)?;
         Ok(j.to_string())
     })
 }
@@ -468,7 +478,7 @@ fn py_auto(
         let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
         let run = refine::auto(&mut m, &p, val.as_ref(), &opts, max_steps)
             .map_err(|e| fit_error("", e))?;
-        let j = json!({
+        let mut j = json!({
             "residual_mode": run.last.residual_mode,
             "steps": run.steps,
             "stop": run.stop,
@@ -476,6 +486,7 @@ fn py_auto(
             "model": m.to_sim(),
             "resampled": rec.inner.resampled,
         });
+        stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))
     })
 }
@@ -507,6 +518,7 @@ fn py_fit(
     };
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
+        m.on_axis(p.axis).map_err(model_error)?;
         let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
         let as_given = model.map(|_| {
             json!({
@@ -515,11 +527,12 @@ fn py_fit(
             })
         });
         let r = refine::fit_add(&mut m, &p, kind, val.as_ref()).map_err(|e| fit_error("", e))?;
-        let j = json!({
+        let mut j = json!({
             "report": r,
             "as_given": as_given,
             "resampled": rec.inner.resampled,
         });
+        stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))
     })
 }
@@ -551,7 +564,11 @@ fn py_compare(
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
         let m = match (model, refit) {
-            (Some(m), false) => m.inner.clone(),
+            (Some(m), false) => {
+                let mut m = m.inner.clone();
+                m.on_axis(p.axis).map_err(model_error)?;
+                m
+            }
             _ => fitted(rec, model, &p)?,
         };
         let res = match mode {
@@ -568,7 +585,7 @@ fn py_compare(
         }
         let metrics = metrics::compute(&res, period);
         finite_score(rec, metrics.fit_percent, metrics.rms)?;
-        let j = json!({
+        let mut j = json!({
             "metrics": metrics,
             "params": refine::param_rows(&m),
             "report": null,
@@ -580,6 +597,7 @@ fn py_compare(
                 "residual": res.residual,
             },
         });
+        stamp(&mut j, rec, mode)?;
         Ok(j.to_string())
     })
 }

@@ -103,11 +103,12 @@ impl Param {
         self.span.clone()
     }
 
-    /// Convert a written unit to the canonical unit of `spec` and check the physical range.
-    /// On error returns the message; the caller attaches the position from [`Param::span`].
-    pub fn resolve(&mut self, spec: &ParamSpec) -> Result<(), String> {
+    /// Convert a written unit to the canonical unit of `spec` (spelled as `axis` spells it)
+    /// and check the physical range. On error returns the message; the caller attaches the
+    /// position from [`Param::span`].
+    pub fn resolve(&mut self, spec: &ParamSpec, axis: units::Axis) -> Result<(), String> {
         if let Some(unit) = self.written_unit.take() {
-            let factor = units::conversion(&unit, spec.unit)
+            let factor = units::conversion_on(&unit, spec.unit, axis)
                 .map_err(|e| format!("parameter `{}`: {e}", spec.name))?;
             self.value *= factor;
             self.min = self.min.map(|m| m * factor);
@@ -119,7 +120,11 @@ impl Param {
         if self.value < spec.min || self.value > spec.max {
             return Err(format!(
                 "parameter `{}` = {} {} is outside its physical range [{}, {}]",
-                spec.name, self.value, spec.unit, spec.min, spec.max
+                spec.name,
+                self.value,
+                axis.unit(spec.unit),
+                spec.min,
+                spec.max
             ));
         }
         // The fitting bounds: a NaN bound compares false with everything, so it would pass

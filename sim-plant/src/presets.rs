@@ -236,6 +236,7 @@ fn build(motor: &MotorRow, d: &Defaults, r: &TransmissionRow) -> Model {
              (assumed numbers are marked there)",
             r.title
         ),
+        axis: None,
         motor: sections::motor::Params {
             inertia: fixed(r.input_inertia),
             damping: fixed(0.0),

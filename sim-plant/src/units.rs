@@ -67,6 +67,100 @@ const fn a(spelling: &'static str, canonical: &'static str, factor: f64) -> Alia
     }
 }
 
+/// What the model's coordinate measures. The equations of a rigid joint and of a linear axis
+/// are the same with force for torque, metres for radians and kilograms for kg·m² (a ball
+/// screw's carriage, the EMPS benchmark): the numbers are stored alike, and only the names of
+/// their units differ, in files, reports and the spellings a file may use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// A joint: N·m, rad, kg·m².
+    #[default]
+    Rotary,
+    /// A linear axis: N, m, kg.
+    Linear,
+}
+
+impl Axis {
+    /// The axis whose position is measured in `unit` (`m` → linear, anything else rotary).
+    pub fn of_position_unit(unit: &str) -> Axis {
+        if unit == "m" {
+            Axis::Linear
+        } else {
+            Axis::Rotary
+        }
+    }
+
+    /// Its name in files (`rotary`, `linear`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Axis::Rotary => "rotary",
+            Axis::Linear => "linear",
+        }
+    }
+
+    /// A canonical (rotary) unit as this axis names it: `N·m·s/rad` → `N·s/m` on a linear
+    /// axis.
+    pub fn unit(self, canonical: &str) -> String {
+        match self {
+            Axis::Rotary => canonical.to_string(),
+            Axis::Linear => canonical
+                .replace("(N·m)", "N")
+                .replace("kg·m²", "kg")
+                .replace("N·m", "N")
+                .replace("rad", "m"),
+        }
+    }
+}
+
+/// Spellings on a linear axis, to the canonical (rotary-named) unit of the same number.
+const LINEAR: &[Alias] = &[
+    a("N", "N·m", 1.0),
+    a("kN", "N·m", 1e3),
+    a("m", "rad", 1.0),
+    a("mm", "rad", 1e-3),
+    a("um", "rad", 1e-6),
+    a("µm", "rad", 1e-6),
+    a("m/s", "rad/s", 1.0),
+    a("mm/s", "rad/s", 1e-3),
+    a("N·s/m", "N·m·s/rad", 1.0),
+    a("Ns/m", "N·m·s/rad", 1.0),
+    a("N*s/m", "N·m·s/rad", 1.0),
+    a("N/m", "N·m/rad", 1.0),
+    a("N/mm", "N·m/rad", 1e3),
+    a("kg", "kg·m²", 1.0),
+    a("1/N", "1/(N·m)", 1.0),
+    a("kg·s²", "kg·m²·s²", 1.0),
+];
+
+/// [`conversion`] on `axis`: a linear axis's file writes N, m, kg (and their multiples), and
+/// a rotary spelling of a linear quantity there is an error, not a silent factor of 1.
+pub fn conversion_on(unit: &str, canonical: &str, axis: Axis) -> Result<f64, String> {
+    if axis == Axis::Rotary {
+        return conversion(unit, canonical);
+    }
+    let unit = unit.trim();
+    if let Some(al) = LINEAR.iter().find(|al| al.spelling == unit) {
+        return if al.canonical == canonical {
+            Ok(al.factor)
+        } else {
+            Err(format!(
+                "unit `{unit}` measures {}, but this parameter is in {}",
+                Axis::Linear.unit(al.canonical),
+                Axis::Linear.unit(canonical)
+            ))
+        };
+    }
+    let linear = Axis::Linear.unit(canonical);
+    if linear != canonical && !unit.is_empty() && conversion(unit, canonical).is_ok() {
+        return Err(format!(
+            "unit `{unit}` is a rotary unit, and this model's axis is linear: this parameter \
+             is in {linear}"
+        ));
+    }
+    conversion(unit, canonical).map_err(|e| e.replace(canonical, &linear))
+}
+
 /// Factor converting a value written in `unit` to `canonical`, or an explanation.
 pub fn conversion(unit: &str, canonical: &str) -> Result<f64, String> {
     let unit = unit.trim();
@@ -133,5 +227,22 @@ mod tests {
         assert_eq!(split_number_unit("-1.5e-3 s").unwrap(), (-1.5e-3, "s"));
         assert_eq!(split_number_unit("2.5").unwrap(), (2.5, ""));
         assert!(split_number_unit("deg").is_err());
+    }
+
+    #[test]
+    fn a_linear_axis_speaks_newtons_and_metres() {
+        let lin = Axis::Linear;
+        assert_eq!(lin.unit("N·m·s/rad"), "N·s/m");
+        assert_eq!(lin.unit("kg·m²"), "kg");
+        assert_eq!(lin.unit("1/(N·m)"), "1/N");
+        assert_eq!(Axis::Rotary.unit("N·m"), "N·m");
+        assert_eq!(conversion_on("mm", "rad", lin).unwrap(), 1e-3);
+        assert_eq!(conversion_on("N/mm", "N·m/rad", lin).unwrap(), 1e3);
+        assert_eq!(conversion_on("ms", "s", lin).unwrap(), 1e-3);
+        let e = conversion_on("N·m", "N·m", lin).unwrap_err();
+        assert!(e.contains("rotary") && e.contains("in N"), "{e}");
+        let e = conversion_on("N", "rad", lin).unwrap_err();
+        assert!(e.contains("measures N") && e.contains("in m"), "{e}");
+        assert!(conversion_on("N", "N·m", Axis::Rotary).is_err());
     }
 }

@@ -230,3 +230,34 @@ fn names_of_any_content_write_back() {
         assert_eq!(back, m);
     }
 }
+
+/// A linear axis (a ball-screw carriage): the file names N, m, kg, accepts their multiples,
+/// refuses a joint's units, and writes itself back in its own units.
+#[test]
+fn a_linear_axis_file_reads_and_writes_newtons_and_metres() {
+    let text = "name = \"carriage\"\naxis = \"linear\"\n[motor]\ninertia = \"95 kg\"\n\
+                [plant]\noutput_inertia = \"5 kg\"\n[effects.coulomb]\ntorque = \"20 N\"\n[effects.backlash]\nwidth = \"0.5 mm\"\n\
+                [effects.viscous]\ndamping = \"205 N·s/m\"\n";
+    let m = Model::from_toml_str(text, "axis.toml").unwrap();
+    assert_eq!(m.axis, Some(sim_plant::units::Axis::Linear));
+    assert_eq!(m.motor.inertia.value, 95.0);
+    assert_eq!(m.effects.coulomb.as_ref().unwrap().torque.value, 20.0);
+    let w = m.effects.backlash.as_ref().unwrap().width.value;
+    assert!((w - 0.5e-3).abs() < 1e-15, "{w}");
+    let out = m.to_toml_string();
+    assert!(out.contains("axis = \"linear\""), "{out}");
+    assert!(
+        out.contains("# N·s/m") && out.contains("# kg") && out.contains("# m\n"),
+        "{out}"
+    );
+    assert!(!out.contains("N·m") && !out.contains("rad"), "{out}");
+    assert_eq!(Model::from_toml_str(&out, "again.toml").unwrap(), m);
+
+    // A joint's unit in a linear file, and a linear unit in a joint's, name the line.
+    let (line, _, msg) = located(&text.replace("\"20 N\"", "\"20 N·m\""));
+    assert_eq!(line, 8);
+    assert!(msg.contains("rotary unit") && msg.contains("in N"), "{msg}");
+    let (line, _, msg) = located(&text.replace("axis = \"linear\"\n", ""));
+    assert_eq!(line, 3);
+    assert!(msg.contains("unknown unit `kg`"), "{msg}");
+}

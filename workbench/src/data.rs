@@ -448,7 +448,7 @@ pub fn input_unit(cols: &Columns) -> String {
         Some(t) => format!("{base}·{t}"),
     };
     if cols.input_gain != 1.0 {
-        format!("{u}×{}", cols.input_gain)
+        format!("{u}×{}", crate::units::eng(cols.input_gain))
     } else {
         u.to_string()
     }

@@ -47,6 +47,7 @@ use super::metrics::Score;
 use super::model::Model;
 use super::residual::{self, Prepared};
 use super::stats;
+use super::units::eng;
 
 /// Tuning of the diagnosis.
 #[derive(Debug, Clone)]
@@ -955,14 +956,14 @@ impl Diagnosis {
         let _ = writeln!(s, "input between samples: {}", self.intersample);
         let _ = writeln!(
             s,
-            "residual: {}   fit {:.2} %   RMS {:.4e}   noise floor {:.4e} (input {:.3e}, \
-             encoder {:.3e})   Ljung–Box p {:.2e}",
+            "residual: {}   fit {:.2} %   RMS {}   noise floor {} (input {}, encoder {})   \
+             Ljung–Box p {:.2e}",
             self.residual_mode,
             b.fit_percent,
-            b.rms,
-            b.noise_floor_rms,
-            b.input_noise_rms,
-            b.encoder_noise_rms,
+            eng(b.rms),
+            eng(b.noise_floor_rms),
+            eng(b.input_noise_rms),
+            eng(b.encoder_noise_rms),
             b.ljung_box_p
         );
         let _ = writeln!(
@@ -973,11 +974,11 @@ impl Diagnosis {
         for c in &self.candidates {
             let _ = writeln!(
                 s,
-                "{:>4}  {:<13} {:>9.3} {:>12.4e} {:>10.2e} {:>4} {:>5}  {}",
+                "{:>4}  {:<13} {:>9.3} {:>12} {:>10.2e} {:>4} {:>5}  {}",
                 c.rank,
                 c.effect,
                 100.0 * c.err,
-                c.statistic,
+                eng(c.statistic),
                 c.p_value,
                 c.df,
                 c.grid,

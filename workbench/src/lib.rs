@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Dependency order (a module uses only those before it): `data`, `diff`, `stats`, `spectral`,
-//! `model` → `fit` → `residual`, `metrics` → `diagnose` → `refine` → `closed_loop`, `report`.
+//! `model` → `fit` → `residual`, `metrics` → `diagnose` → `refine` → `closed_loop`, `report`,
+//! `schema` (what every JSON object carries).
 //!
 //! Effect features come from `sim_plant::effects::fingerprint` only; nothing here knows what
 //! Coulomb friction looks like.
@@ -76,6 +77,7 @@ pub mod names;
 pub mod refine;
 pub mod report;
 pub mod residual;
+pub mod schema;
 pub mod spectral;
 pub mod stats;
 pub mod units;

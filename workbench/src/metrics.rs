@@ -11,6 +11,7 @@ use serde::Serialize;
 use super::residual::Residual;
 use super::stats;
 pub use super::stats::noise_floor;
+use super::units::eng;
 
 /// Fit % and RMS of a model on one record.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -146,7 +147,7 @@ fn quantile_bins(key: &[f64], r: &[f64], k: usize, name: &str) -> Vec<Bin> {
                 .filter(|(v, _)| **v >= lo && (**v < hi || (i == k - 1 && **v <= hi)))
                 .map(|(_, e)| *e)
                 .collect();
-            bin(format!("{name} {lo:.4e}..{hi:.4e}"), &vals)
+            bin(format!("{name} {}..{}", eng(lo), eng(hi)), &vals)
         })
         .collect()
 }
@@ -283,8 +284,13 @@ impl Metrics {
         let _ = writeln!(s, "residual: {}", self.residual_mode);
         let _ = writeln!(
             s,
-            "fit {:.2} %   RMS {:.4e}   max {:.4e} (t = {:.3} s)   noise floor {:.4e}   rel. error {:.2} %",
-            self.fit_percent, self.rms, self.max_abs, self.max_at_s, self.noise_floor_rms, self.relative_error_percent
+            "fit {:.2} %   RMS {}   max {} (t = {:.3} s)   noise floor {}   rel. error {:.2} %",
+            self.fit_percent,
+            eng(self.rms),
+            eng(self.max_abs),
+            self.max_at_s,
+            eng(self.noise_floor_rms),
+            self.relative_error_percent
         );
         let _ = writeln!(
             s,
@@ -302,8 +308,12 @@ impl Metrics {
             for b in bins.iter() {
                 let _ = writeln!(
                     s,
-                    "  {:<42} n={:<7} rms={:.4e} mean={:+.4e}",
-                    b.label, b.count, b.rms, b.mean
+                    "  {:<42} n={:<7} rms={:<10} mean={}{}",
+                    b.label,
+                    b.count,
+                    eng(b.rms),
+                    if b.mean >= 0.0 { "+" } else { "" },
+                    eng(b.mean)
                 );
             }
         }

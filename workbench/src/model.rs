@@ -29,6 +29,7 @@
 use sim_plant::effects::{EffectKind, Shape};
 use sim_plant::model::{FitEffect, FitRecord};
 use sim_plant::param::Param as SimParam;
+use sim_plant::units::Axis;
 use std::path::Path;
 
 /// One parameter.
@@ -93,6 +94,9 @@ pub struct Model {
     /// The simulator model this one was read from: what the fit does not touch (gear ratio,
     /// sensors, motor limits, settings) is written back from it.
     pub template: Option<sim_plant::Model>,
+    /// What its coordinate measures: from its file, or from the data it was fitted to
+    /// ([`Model::on_axis`]); `None` reads as rotary.
+    pub axis: Option<Axis>,
 }
 
 /// Model file problems.
@@ -109,6 +113,21 @@ pub enum ModelError {
         /// What is wrong.
         #[source]
         source: Unfittable,
+    },
+    /// A model of one kind of axis given a recording of the other.
+    #[error(
+        "the model is for a {model} axis ({model_units}), but the recording's position is \
+         {data} ({data_units}): a model fitted on one does not describe the other"
+    )]
+    Axis {
+        /// The model's axis.
+        model: &'static str,
+        /// Its units.
+        model_units: String,
+        /// The recording's.
+        data: &'static str,
+        /// Its units.
+        data_units: String,
     },
     /// A fitted model that no model file can hold, so it was not written.
     #[error("{file}: not written, the fitted model is not physical: {source}")]
@@ -182,6 +201,28 @@ impl Model {
             inertia: Param::free("inertia", 0.0),
             effects: vec![EffectEntry::new(EffectKind::Viscous, Shape::default())],
             template: None,
+            axis: None,
+        }
+    }
+
+    /// Take the axis of the data (`Prepared::axis`) the model is fitted to or compared with;
+    /// a model file that names the other kind of axis is an error.
+    pub fn on_axis(&mut self, data: Axis) -> Result<(), ModelError> {
+        match self.axis {
+            Some(a) if a != data => {
+                let units =
+                    |x: Axis| format!("{}, {}, {}", x.unit("N·m"), x.unit("rad"), x.unit("kg·m²"));
+                Err(ModelError::Axis {
+                    model: a.name(),
+                    model_units: units(a),
+                    data: data.name(),
+                    data_units: units(data),
+                })
+            }
+            _ => {
+                self.axis = Some(data);
+                Ok(())
+            }
         }
     }
 
@@ -356,6 +397,7 @@ impl Model {
             },
             effects: Vec::new(),
             template: Some(sim.clone()),
+            axis: sim.axis,
         };
         for kind in sim.effects.kinds() {
             let record = sim.fit.effects.get(kind.name());
@@ -449,6 +491,7 @@ impl Model {
             ..sim_plant::Model::default()
         });
         sim.name = self.name.clone();
+        sim.axis = self.axis;
         let n = sim.plant.gear_ratio.value;
         let b = n * n * sim.motor.damping.value + sim.plant.output_damping.value;
         // Effects removed from the fit are removed from the file.

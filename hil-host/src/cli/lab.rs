@@ -15,7 +15,7 @@ use crate::lab::card_node::CardNode;
 use crate::lab::gains;
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
 use crate::lab::plant_node::PlantNode;
-use crate::lab::plot::plot_recording;
+use crate::lab::plot::{html_report, plot_recording};
 use crate::lab::qemu_card::{resolve_image, run_qemu_card, CardChoice, QemuCard};
 use crate::lab::recorder::{read_rows, Recorder};
 use crate::lab::report::{self, CardFacts, Facts, Report, RunFailed, SupervisorFacts, Verdict};
@@ -131,6 +131,14 @@ pub struct ReportArgs {
     /// Share of ticks without an actuator frame above which the run counts as degraded.
     #[arg(long, default_value_t = report::MAX_LOSS)]
     pub max_loss: f64,
+    /// Also write an HTML report (zoomable plots, the report, the files with their hashes)
+    /// into this directory, as `compare` and `diagnose --auto` do (`demo`: a subdirectory per
+    /// scenario).
+    #[arg(long = "report", value_name = "DIR")]
+    pub html: Option<PathBuf>,
+    /// With --report, also write PNGs beside the report's SVGs.
+    #[arg(long, requires = "html")]
+    pub png: bool,
 }
 
 impl ReportArgs {
@@ -332,6 +340,20 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             .iter()
             .map(|p| p.display().to_string())
             .collect();
+        if let Some(dir) = &a.report.html {
+            let html = html_report(
+                &dir.join(&stem),
+                &format!("demo {} — {}", kind.name(), a.plant.label()),
+                &r,
+                &csv,
+                lab.recorder.tally().rows,
+                lab.scenario.scale.gear_ratio(),
+                &[&csv, &log, &png],
+                &a.plant.model.iter().cloned().collect::<Vec<_>>(),
+                a.report.png,
+            )?;
+            r.files.push(html.display().to_string());
+        }
         print_report(&r, a.report.json);
         reports.push(r);
         if interrupted {
@@ -1020,6 +1042,29 @@ pub fn run(a: RunArgs) -> Result<()> {
         .flatten()
         .map(|p| p.display().to_string())
         .collect();
+    if let Some(dir) = &a.report.html {
+        let csv = rec
+            .csv_path()
+            .ok_or_else(|| anyhow!("--report needs the recording: give --csv"))?
+            .to_path_buf();
+        let written: Vec<&std::path::Path> = [&a.csv, &a.candump, &a.plot]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect();
+        let html = html_report(
+            dir,
+            &format!("run {} — {}", sc.kind.name(), a.sup.plant.label()),
+            &r,
+            &csv,
+            rec.tally().rows,
+            sc.scale.gear_ratio(),
+            &written,
+            &a.sup.plant.model.iter().cloned().collect::<Vec<_>>(),
+            a.report.png,
+        )?;
+        r.files.push(html.display().to_string());
+    }
     print_report(&r, a.report.json);
     verdicts(&[r])
 }
@@ -1098,6 +1143,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
             report: ReportArgs {
                 json: false,
                 max_loss: report::MAX_LOSS,
+                html: None,
+                png: false,
             },
             card: CardChoice::Host,
         };

@@ -15,6 +15,7 @@ use jointlab_workbench::model::Model;
 use jointlab_workbench::refine::{self, AutoStep, FitReport, Score};
 use jointlab_workbench::report::{self, Chart, Series};
 use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
+use jointlab_workbench::schema;
 
 /// Examples for `compare --help`.
 pub const COMPARE_EXAMPLES: &str = "Examples:
@@ -193,6 +194,14 @@ impl DataArgs {
         let cols = d.columns(&d.file, true)?;
         load_prepared(&d.file, &cols, self.cutoff)
     }
+    /// The units of the recording's signals for the equation error (what `diagnose` and `fit`
+    /// score), as every `--json` names them.
+    fn units(&self) -> anyhow::Result<schema::RecordUnits> {
+        Ok(schema::RecordUnits::of(
+            &self.columns(true)?,
+            Mode::Equation,
+        )?)
+    }
     /// The one model file a command other than `compare` takes.
     fn model_file(&self) -> anyhow::Result<Option<&PathBuf>> {
         match self.model.as_slice() {
@@ -214,6 +223,8 @@ impl DataArgs {
             Some(f) => Model::load(f)?,
             None => Model::baseline(),
         };
+        m.on_axis(p.axis)
+            .context(self.csv()?.display().to_string())?;
         if m.params().iter().any(|q| q.free) {
             refine::refit_all(&mut m, p).context("fitting the free parameters")?;
         }
@@ -436,7 +447,11 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
     let mut models = Vec::new();
     for f in &files {
         let model = match (f, a.refit) {
-            (Some(f), false) => Model::load(f)?,
+            (Some(f), false) => {
+                let mut m = Model::load(f)?;
+                m.on_axis(p.axis).context(csv.display().to_string())?;
+                m
+            }
             _ => a.data.model_fitted(*f, &p)?,
         };
         let res = match mode {
@@ -555,6 +570,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
                 })
                 .collect();
         }
+        schema::stamp(&mut j, &schema::RecordUnits::of(&cols, mode)?);
         println!("{j}");
     } else {
         for ((model, _, m), name) in models.iter().zip(&names) {
@@ -626,14 +642,23 @@ fn zoom_view(models: &[report::Compared<'_>], units: &report::Units) -> report::
 
 /// A model's parameters ± 1σ, one per line, for the HTML reports.
 fn param_text(rows: &[refine::ParamRow]) -> String {
-    rows.iter()
+    let head = format!(
+        "{:<12} {:<14} {:>12}   {:<10} {}\n",
+        "owner", "parameter", "value", "1σ", "unit"
+    );
+    head + &rows
+        .iter()
         .map(|r| {
             format!(
-                "{:<12} {:<14} {:>14.6e} ± {:.2e}\n",
-                r.owner, r.name, r.value, r.sigma
+                "{:<12} {:<14} {:>12} ± {:<10} {}\n",
+                r.owner,
+                r.name,
+                report::eng(r.value),
+                report::eng(r.sigma),
+                r.unit
             )
         })
-        .collect()
+        .collect::<String>()
 }
 
 /// The `--auto` table: one row per step.
@@ -669,15 +694,15 @@ fn auto_text(steps: &[AutoStep]) -> String {
         };
         prev_val = st.validation.map(|v| v.rms);
         s.push_str(&format!(
-            "{:>4}  {:<w$} {:>9.3} {:>12.4e} {:>7.2} {:>10} {:>12} {:>10} {:>10}\n",
+            "{:>4}  {:<w$} {:>9.3} {:>12} {:>7.2} {:>10} {:>12} {:>10} {:>10}\n",
             st.step,
             label(st),
             st.score.fit_percent,
-            st.score.rms,
+            report::eng(st.score.rms),
             st.score.floor_ratio(),
             st.p_value.map(|p| format!("{p:.2e}")).unwrap_or_default(),
             st.validation
-                .map(|v| format!("{:.4e}", v.rms))
+                .map(|v| report::eng(v.rms))
                 .unwrap_or_default(),
             st.validation
                 .map(|v| format!("{:.3}", v.fit_percent))
@@ -703,6 +728,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         if a.json {
             let mut j = d.to_json();
             j["resampled"] = serde_json::json!(resampled);
+            schema::stamp(&mut j, &a.data.units()?);
             println!("{j}");
         } else {
             print!("{}", d.to_text());
@@ -738,8 +764,10 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
                 (None, None) => "start".into(),
             };
             spinner.println(format!(
-                "step {}: {what}, fit {:.3} %, RMS {:.4e}",
-                s.step, s.score.fit_percent, s.score.rms
+                "step {}: {what}, fit {:.3} %, RMS {}",
+                s.step,
+                s.score.fit_percent,
+                report::eng(s.score.rms)
             ));
             spinner.set_position((s.step as u64).min(a.max_steps as u64));
             spinner.set_message("ranking what is left and refitting the leading candidates");
@@ -846,18 +874,17 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         )?);
     }
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "residual_mode": run.last.residual_mode,
-                "steps": run.steps,
-                "stop": run.stop,
-                "final": run.last.to_json(),
-                "model": model.to_sim(),
-                "model_file": save,
-                "resampled": resampled,
-            })
-        );
+        let mut j = serde_json::json!({
+            "residual_mode": run.last.residual_mode,
+            "steps": run.steps,
+            "stop": run.stop,
+            "final": run.last.to_json(),
+            "model": model.to_sim(),
+            "model_file": save,
+            "resampled": resampled,
+        });
+        schema::stamp(&mut j, &a.data.units()?);
+        println!("{j}");
     } else {
         print!("{table}");
         println!("stopped: {}", run.stop);
@@ -879,24 +906,15 @@ fn fit_text(r: &FitReport) -> String {
         "added: {}\n",
         r.added.map_or("(nothing, refit only)", |k| k.name())
     ));
-    s.push_str(&format!(
-        "{:<12} {:<14} {:>14}   {:>10}\n",
-        "owner", "parameter", "value", "1σ"
-    ));
-    for p in &r.params {
-        s.push_str(&format!(
-            "{:<12} {:<14} {:>14.6e} ± {:.3e}\n",
-            p.owner, p.name, p.value, p.sigma
-        ));
-    }
+    s.push_str(&param_text(&r.params));
     let line = |name: &str, b: &Score, a: &Score| {
         format!(
-            "{name}: fit {:.3} % → {:.3} %, RMS {:.4e} → {:.4e} ({:.2} → {:.2}× the noise floor), \
+            "{name}: fit {:.3} % → {:.3} %, RMS {} → {} ({:.2} → {:.2}× the noise floor), \
              rel. error {:.3} % → {:.3} %\n",
             b.fit_percent,
             a.fit_percent,
-            b.rms,
-            a.rms,
+            report::eng(b.rms),
+            report::eng(a.rms),
             b.floor_ratio(),
             a.floor_ratio(),
             b.relative_error_percent,
@@ -938,9 +956,9 @@ impl AsGiven {
         }
         let one = |name: &str, g: &Score| {
             format!(
-                "{name} fit {:.3} %, RMS {:.4e} ({:.2}× the noise floor)",
+                "{name} fit {:.3} %, RMS {} ({:.2}× the noise floor)",
                 g.fit_percent,
-                g.rms,
+                report::eng(g.rms),
                 g.floor_ratio()
             )
         };
@@ -992,6 +1010,9 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         Some(f) => Model::load(f)?,
         None => Model::baseline(),
     };
+    model
+        .on_axis(p.axis)
+        .context(a.data.csv()?.display().to_string())?;
     let kind = match &a.add {
         Some(n) => {
             let k = jointlab_workbench::names::effect(n)?;
@@ -1016,15 +1037,14 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
     model.save(&save)?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "report": r,
-                "as_given": as_given,
-                "model_file": save,
-                "resampled": resampled,
-            })
-        );
+        let mut j = serde_json::json!({
+            "report": r,
+            "as_given": as_given,
+            "model_file": save,
+            "resampled": resampled,
+        });
+        schema::stamp(&mut j, &a.data.units()?);
+        println!("{j}");
     } else {
         if let Some(g) = as_given.as_ref().and_then(|g| g.text(&r)) {
             print!("{g}");

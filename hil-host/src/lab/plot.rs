@@ -107,3 +107,124 @@ pub fn plot_recording(
         .collect::<Result<Vec<Row>>>()?;
     plot_run(png, title, &kept, gear_ratio)
 }
+
+/// The run's HTML report in `dir` (as `compare` writes one): the verdict first, a zoomable
+/// view of position and torques, the same panels as charts (`png`: also as PNGs), the text
+/// report, the files written with their SHA-256, and provenance (`inputs`: the files the run
+/// read). The recording is read every k-th row, as for [`plot_recording`].
+#[allow(clippy::too_many_arguments)]
+pub fn html_report(
+    dir: &Path,
+    title: &str,
+    report: &super::report::Report,
+    csv: &Path,
+    rows: u64,
+    gear_ratio: f64,
+    written: &[&Path],
+    inputs: &[std::path::PathBuf],
+    png: bool,
+) -> Result<std::path::PathBuf> {
+    use jointlab_workbench::report::page::{InputFile, Page, Panel, Provenance, Trace, ZoomView};
+    use jointlab_workbench::report::{Chart, Series};
+    let every = rows.div_ceil(PLOT_POINTS).max(1) as usize;
+    let kept = super::recorder::read_rows(csv)?
+        .step_by(every)
+        .collect::<Result<Vec<Row>>>()?;
+    type Column<'a> = (&'a str, bool, Box<dyn Fn(&Row) -> f64 + 'a>);
+    let panels: Vec<(&str, &str, Vec<Column>)> = vec![
+        (
+            "position",
+            "position [output rad]",
+            vec![
+                ("setpoint", true, Box::new(|r: &Row| r.setpoint_pos_rad)),
+                (
+                    "motor / N",
+                    false,
+                    Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio),
+                ),
+                ("output", false, Box::new(|r: &Row| r.output_pos_rad)),
+            ],
+        ),
+        (
+            "torque_command",
+            "torque command [motor N·m]",
+            vec![("command", false, Box::new(|r: &Row| r.torque_cmd_nm))],
+        ),
+        (
+            "torque_sensor",
+            "torque sensor [output N·m]",
+            vec![
+                ("setpoint", true, Box::new(|r: &Row| r.setpoint_torque_nm)),
+                ("sensor", false, Box::new(|r: &Row| r.torque_sensor_nm)),
+            ],
+        ),
+    ];
+    let time: Vec<f64> = kept.iter().map(|r| r.time_s).collect();
+    let zoom = ZoomView {
+        x_label: "time [s]".into(),
+        time: time.clone(),
+        panels: panels
+            .iter()
+            .map(|(_, label, cols)| Panel {
+                y_label: label.to_string(),
+                series: cols
+                    .iter()
+                    .map(|(name, reference, f)| Trace {
+                        name: name.to_string(),
+                        y: kept.iter().map(|r| f(r) as f32).collect(),
+                        reference: *reference,
+                    })
+                    .collect(),
+            })
+            .collect(),
+    };
+    let charts: Vec<Chart> = panels
+        .iter()
+        .map(|(id, label, cols)| Chart {
+            id: id.to_string(),
+            title: label.to_string(),
+            x_label: "time [s]".into(),
+            y_label: label.to_string(),
+            series: cols
+                .iter()
+                .map(|(name, reference, f)| {
+                    let points = kept.iter().map(|r| (r.time_s, f(r))).collect();
+                    if *reference {
+                        Series::reference(*name, points)
+                    } else {
+                        Series::line(*name, points)
+                    }
+                })
+                .collect(),
+        })
+        .collect();
+    let mut files = String::new();
+    for p in written {
+        let f = InputFile::hash(p)?;
+        files.push_str(&format!(
+            "{}  {} bytes  SHA-256 {}\n",
+            f.path.display(),
+            f.bytes,
+            f.sha256
+        ));
+    }
+    let provenance = Provenance::now(concat!("hil-host ", env!("CARGO_PKG_VERSION")), inputs)?;
+    let finding = format!("{}: {}", report.verdict.word(), report.headline);
+    let path = jointlab_workbench::report::page::write(
+        dir,
+        &Page {
+            title,
+            finding: &finding,
+            provenance: &provenance,
+            sections: &[
+                ("report".into(), report.text()),
+                ("files written".into(), files),
+            ],
+            charts: &charts,
+            zoom: Some(&zoom),
+            models: &[],
+        },
+        png,
+    )?;
+    Ok(path)
+}

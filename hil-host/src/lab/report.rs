@@ -599,6 +599,7 @@ impl Report {
         };
         let num = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
         json!({
+            "schema_version": SCHEMA_VERSION,
             "title": f.title,
             "verdict": self.verdict.word().to_lowercase(),
             "exit_code": self.verdict.exit_code(),
@@ -662,6 +663,11 @@ impl Report {
         })
     }
 }
+
+/// The layout of [`Report::json`]: raised when a key changes meaning or goes away (a new key
+/// does not raise it). Durations and times carry their unit in the key (`_s`, `_us`),
+/// figures in their `unit`.
+pub const SCHEMA_VERSION: u32 = 1;
 
 /// A run that did not end [`Verdict::Ok`]: the error a command returns after printing its
 /// report, carrying the exit code.

@@ -30,6 +30,7 @@ pub const FIT: FitTraits = FitTraits {
     searched_shape: true,
     smooth_shape: Some(SmoothShape {
         get: |s| s.deadband_width,
+        unit: "N·m",
         set: |s, v| s.deadband_width = v,
     }),
     file_shape: &[same_shape!("input_scale" => input_scale)],

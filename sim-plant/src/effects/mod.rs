@@ -296,6 +296,8 @@ pub struct SmoothShape {
     pub get: fn(&Shape) -> f64,
     /// Set it in `shape`.
     pub set: fn(&mut Shape, f64),
+    /// Its unit (canonical, rotary-named; see [`crate::units::Axis::unit`]).
+    pub unit: &'static str,
 }
 
 /// A shape parameter of the model file and where the fit keeps it in [`Shape`]. The file holds

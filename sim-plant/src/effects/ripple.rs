@@ -33,6 +33,7 @@ pub const FIT: FitTraits = FitTraits {
     searched_shape: true,
     smooth_shape: Some(SmoothShape {
         get: |s| s.ripple_period,
+        unit: "rad",
         set: |s, v| s.ripple_period = v,
     }),
     search: ShapeSearch::Period,

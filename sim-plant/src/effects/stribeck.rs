@@ -31,6 +31,7 @@ pub const FIT: FitTraits = FitTraits {
     searched_shape: true,
     smooth_shape: Some(SmoothShape {
         get: |s| s.stribeck_velocity,
+        unit: "rad/s",
         set: |s, v| s.stribeck_velocity = v,
     }),
     search: ShapeSearch::Stick,

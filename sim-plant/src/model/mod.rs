@@ -39,6 +39,7 @@ pub use fit_record::{FitEffect, FitRecord};
 
 use crate::effects::{EffectKind, EffectSet};
 use crate::param::{Param, ParamSpec};
+use crate::units::Axis;
 
 /// Which mechanical structure a model describes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -61,6 +62,10 @@ pub struct Model {
     /// Free text: source, assumptions.
     #[serde(default)]
     pub description: String,
+    /// What the coordinate measures; absent, a rotary joint's unit names (the numbers are the
+    /// same either way, see [`Axis`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<Axis>,
     /// Motor-shaft data.
     #[serde(default)]
     pub motor: sections::motor::Params,
@@ -87,6 +92,7 @@ impl Default for Model {
         Self {
             name: unnamed(),
             description: String::new(),
+            axis: None,
             motor: Default::default(),
             plant: Default::default(),
             sensors: Default::default(),
@@ -186,9 +192,10 @@ impl Model {
 
     /// Convert written units, check ranges and cross-parameter consistency.
     fn resolve(&mut self, file: &str, text: &str) -> Result<(), ModelError> {
+        let axis = self.axis.unwrap_or_default();
         let check = |entries: Vec<(&'static ParamSpec, &mut Param)>| -> Result<(), ModelError> {
             for (spec, p) in entries {
-                p.resolve(spec)
+                p.resolve(spec, axis)
                     .map_err(|m| ModelError::at(file, text, p.span(), m))?;
             }
             Ok(())
@@ -262,6 +269,10 @@ impl Model {
                 toml_string(&self.description)
             ));
         }
+        if let Some(axis) = self.axis {
+            s.push_str(&format!("axis = \"{}\"\n", axis.name()));
+        }
+        let axis = self.axis.unwrap_or_default();
         let mut section =
             |title: &str, comment: &str, entries: Vec<(&'static ParamSpec, &Param)>| {
                 s.push_str(&format!("\n[{title}]"));
@@ -274,7 +285,7 @@ impl Model {
                         "{} = {}  # {}\n",
                         spec.name,
                         p.to_toml_value(),
-                        spec.unit
+                        axis.unit(spec.unit)
                     ));
                 }
             };

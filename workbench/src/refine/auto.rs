@@ -198,9 +198,11 @@ pub fn auto_observed(
                     steps: steps.list,
                     last: d,
                     stop: format!(
-                        "adding {} would not improve the validation record (RMS {:.4e} → \
-                         {:.4e}): the model as it is validates best",
-                        c.effect, before.rms, after.rms
+                        "adding {} would not improve the validation record (RMS {} → {}): \
+                         the model as it is validates best",
+                        c.effect,
+                        crate::units::eng(before.rms),
+                        crate::units::eng(after.rms)
                     ),
                 });
             }

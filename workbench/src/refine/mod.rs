@@ -57,6 +57,8 @@ pub struct ParamRow {
     pub value: f64,
     /// 1σ.
     pub sigma: f64,
+    /// Unit, as the model's axis names it (`N·s/m` on a linear axis for `N·m·s/rad`).
+    pub unit: String,
 }
 
 /// What `fit --add` reports.
@@ -241,27 +243,35 @@ fn refit_from(
 
 /// Parameter table of a model.
 pub fn param_rows(model: &Model) -> Vec<ParamRow> {
+    let axis = model.axis.unwrap_or_default();
     let mut rows = vec![ParamRow {
         owner: "inertia".into(),
         name: model.inertia.name.clone(),
         value: model.inertia.value,
         sigma: model.inertia.sigma.unwrap_or(0.0),
+        unit: axis.unit("kg·m²"),
     }];
     for e in &model.effects {
+        let specs = e.kind.params();
         for q in &e.params {
             rows.push(ParamRow {
                 owner: e.kind.name().into(),
                 name: q.name.clone(),
                 value: q.value,
                 sigma: q.sigma.unwrap_or(0.0),
+                unit: specs
+                    .iter()
+                    .find(|s| s.name == q.name)
+                    .map_or_else(String::new, |s| axis.unit(s.unit)),
             });
         }
-        if let Some(v) = smooth_shape(e.kind, &e.shape) {
+        if let Some(a) = e.kind.fit_traits().smooth_shape {
             rows.push(ParamRow {
                 owner: e.kind.name().into(),
                 name: "shape".into(),
-                value: v,
+                value: (a.get)(&e.shape),
                 sigma: 0.0,
+                unit: axis.unit(a.unit),
             });
         }
     }

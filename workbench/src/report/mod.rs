@@ -26,6 +26,7 @@ use std::path::PathBuf;
 
 use super::metrics::Metrics;
 use super::residual::{Mode, Residual};
+pub use super::units::eng;
 
 /// Why a report or plot was not written.
 #[derive(Debug, thiserror::Error)]
@@ -353,34 +354,6 @@ pub fn charts(models: &[Compared<'_>], units: &Units) -> Vec<Chart> {
     ]
 }
 
-/// A number in engineering form for people: 4 significant digits, plain between 10⁻³ and
-/// 10⁵ (`9.735`, `0.01234`, `12345`), else with an exponent that is a multiple of 3
-/// (`1.235e6`, `4.5e-9`).
-pub fn eng(x: f64) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    if x == 0.0 {
-        return "0".into();
-    }
-    let a = x.abs();
-    let trim = |s: String| {
-        if s.contains('.') {
-            s.trim_end_matches('0').trim_end_matches('.').to_string()
-        } else {
-            s
-        }
-    };
-    if (1e-3..1e5).contains(&a) {
-        let digits = (3 - a.log10().floor() as i32).max(0) as usize;
-        return trim(format!("{x:.digits$}"));
-    }
-    let e3 = (a.log10() / 3.0).floor() as i32 * 3;
-    let m = x / 10f64.powi(e3);
-    let digits = (3 - m.abs().log10().floor() as i32).max(0) as usize;
-    format!("{}e{e3}", trim(format!("{m:.digits$}")))
-}
-
 /// What `compare` found, in a few sentences for the top of the report: the best model, whether
 /// anything is left above the noise, and where to look next.
 pub fn finding(models: &[Compared<'_>]) -> String {
@@ -474,22 +447,5 @@ mod tests {
         let mean = s.iter().map(|p| p.1).sum::<f64>() / s.len() as f64;
         let want = 2.0 * dt / 12.0;
         assert!((mean / want - 1.0).abs() < 0.05, "{mean} vs {want}");
-    }
-
-    #[test]
-    fn engineering_numbers() {
-        for (x, s) in [
-            (9.7351, "9.735"),
-            (0.012346, "0.01235"),
-            (12345.0, "12345"),
-            (95.0, "95"),
-            (-3.179, "-3.179"),
-            (1.2346e6, "1.235e6"),
-            (4.5e-9, "4.5e-9"),
-            (0.0, "0"),
-            (f64::NAN, "NaN"),
-        ] {
-            assert_eq!(eng(x), s, "{x}");
-        }
     }
 }

@@ -60,7 +60,10 @@ function zoomView(data) {
     var err = span / count / step;
     if (err >= 5) step *= 5; else if (err >= 2) step *= 2;
     var out = [];
-    for (var v = Math.ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step) out.push(v);
+    // Each tick a whole multiple of the step: no 0.30000000000000004, no −6.9e−18 for 0.
+    for (var k = Math.ceil(lo / step); k * step <= hi + 1e-9 * span; k++) {
+      out.push(Number((k * step).toPrecision(12)));
+    }
     return out;
   }
 
@@ -185,17 +188,24 @@ function zoomView(data) {
       ctx.lineWidth = 1;
       ctx.beginPath();
       if (i1 - i0 > 2 * w) {
-        // Min/max envelope per pixel column.
-        var col = -1, lo = 0, hi = 0;
+        // Min/max envelope per pixel column, joined column to column (a flat stretch is a
+        // line, not a row of zero-length strokes).
+        var col = -1, lo = 0, hi = 0, started = false;
+        var flush = function () {
+          if (col < 0) return;
+          if (started) ctx.lineTo(col + 0.5, Y(lo)); else ctx.moveTo(col + 0.5, Y(lo));
+          ctx.lineTo(col + 0.5, Y(hi));
+          started = true;
+        };
         for (var i = i0; i < i1; i++) {
           var c = Math.floor(X(t[i])), v = s.y[i];
           if (!Number.isFinite(v)) continue;
           if (c !== col) {
-            if (col >= 0) { ctx.moveTo(col + 0.5, Y(lo)); ctx.lineTo(col + 0.5, Y(hi)); }
+            flush();
             col = c; lo = v; hi = v;
           } else { if (v < lo) lo = v; if (v > hi) hi = v; }
         }
-        if (col >= 0) { ctx.moveTo(col + 0.5, Y(lo)); ctx.lineTo(col + 0.5, Y(hi)); }
+        flush();
       } else {
         var first = true;
         for (var j = i0; j < i1; j++) {

@@ -73,6 +73,9 @@ pub struct Prepared {
     /// when the recording has none. The deflection δ = position − load_position is then
     /// measured, not inferred (see `sim_plant::effects::backlash::fingerprint`).
     pub load_position: Vec<f64>,
+    /// What the position measures (from its unit: metres are a linear axis), so a model
+    /// fitted here names its parameters' units as the data do.
+    pub axis: sim_plant::units::Axis,
     /// Variance of the load encoder's noise in the load's acceleration (as
     /// [`Prepared::acceleration_noise_var`]; 0 without a load position).
     pub load_acceleration_noise_var: f64,
@@ -286,6 +289,7 @@ impl Prepared {
             position_noise_var,
             acceleration_noise_var,
             load_position,
+            axis: sim_plant::units::Axis::of_position_unit(&rec.units.1),
             load_acceleration_noise_var,
             intersample,
             gear_ratio: rec.columns.gear_ratio,
@@ -420,6 +424,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         position_noise_var: 0.0,
         acceleration_noise_var: 0.0,
         load_position: Vec::new(),
+        axis: sim_plant::units::Axis::Rotary,
         load_acceleration_noise_var: 0.0,
         intersample,
         gear_ratio: 1.0,
