@@ -3,7 +3,7 @@
 //! floor), three null trials (quiet), and one `--auto` pair (both found). Seeds are fixed and
 //! consecutive (never picked); each group allows the misses stated in its assertion, set from
 //! the bench's rates (`cargo run --release -p jointlab-tests --bin hidden-trials`,
-//! docs/workbench.md *How we know it works*).
+//! docs/design/workbench-validation.md).
 //!
 //! Run in release for speed: `cargo test --release -p jointlab-tests --test workbench_hidden`
 

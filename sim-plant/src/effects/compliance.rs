@@ -164,9 +164,8 @@ fn motion_column(traj: &Trajectory, shape: &Shape) -> Vec<f64> {
 /// measured, and the mode rings them out for 1/(ζω) — seconds at the light damping of a
 /// transmission, and longer for the motion form's locked-motor mode (ζ₂ = ζ/√(1 + J2/J1)).
 /// Filtered from the record's start, the motion form also rings out whatever error the
-/// differentiator's edge (odd reflection) puts into the first samples' acceleration; that
-/// ringing, not the record's dynamics, then dominated the refit (the true mode fitted worse
-/// than a wrong one, and the amplitude came out a fraction of J2/J1). Fitted per record as
+/// differentiator's edge (odd reflection) puts into the first samples' acceleration, and that
+/// ringing, not the record's dynamics, would dominate the refit. Fitted per record as
 /// nuisance regressors (`hil_host::workbench::residual`), as a simulation's initial state is.
 pub fn initial_state(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();

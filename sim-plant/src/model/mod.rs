@@ -304,9 +304,8 @@ impl Model {
     }
 }
 
-/// A TOML basic string literal.
 /// `s` as a TOML basic string. Written here rather than by the `toml` crate: its writer
-/// counts a run of quotes in a `u8` and overflows on 256 of them (found by fuzzing).
+/// counts a run of quotes in a `u8` and overflows on 256 of them.
 fn toml_string(s: &str) -> String {
     let mut out = String::with_capacity(s.len() + 2);
     out.push('"');

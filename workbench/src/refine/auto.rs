@@ -269,11 +269,7 @@ const CLOSE_ERR: f64 = 0.5;
 /// ([`bic`]): significance is judged at the candidate's grid shape against a plain
 /// least-squares projection, but the step adds a fully refitted effect, and refitting (new
 /// shapes, errors-in-variables compensation of the motion columns) can leave the model worse
-/// than before. On the HIL cable recording a backlash after the compliance was significant
-/// at its grid shape (3 % of the residual) and, refitted, raised the RMS from 1.067e-2 to
-/// 1.117e-2 (BIC +780); it used to be rejected only because its width then happened to fall
-/// outside the physical range, and taking it sent `--auto` through a delay probe and a swap
-/// pass that removed it again (15× the run time).
+/// than before (a backlash significant at its grid shape can raise the RMS once refitted).
 /// `None` when none of them fits within its physical range with a lower BIC than the model's.
 pub(super) fn choose(
     model: &Model,

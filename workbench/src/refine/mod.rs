@@ -98,9 +98,8 @@ fn set_shape(kind: EffectKind, s: &mut Shape, v: f64) {
 /// ([`residual::refit`]). A joint LM over amplitudes and shapes minimises the plain sum of
 /// squares, i.e. it is ordinary least squares in the amplitudes, and gives back the
 /// errors-in-variables shrinkage of the inertia that the compensation takes out (the
-/// acceleration column carries the encoder's noise): on the hidden-effect trials the Stribeck
-/// refit's inertia came out 2–3 % low, enough to miss the validation floor by 1.2–1.5×, while
-/// the compensated solution at the very same shapes had it within 0.1 %. The objective is the
+/// acceleration column carries the encoder's noise), a few percent of the inertia: enough to
+/// keep a refit off the noise floor. The objective is the
 /// one the shape searches minimise (`search::ls_rss`), so LM polishes their result instead of
 /// pulling it elsewhere. The amplitudes' 1σ are the least-squares ones at the final shape.
 ///

@@ -238,8 +238,8 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
 /// differentiator. The inertia column (the first) carries the motor encoder's acceleration
 /// noise σ₁²; a backlash column built from a *measured* deflection, −(δ̈ + δ̇/τ) with
 /// δ = x_motor − x_load, carries σ₁² + σ₂² (the load encoder's too) and shares −σ₁² with the
-/// inertia column. Without the shared term the load inertia came out 5–7 % low on the load-encoder
-/// trials (errors-in-variables). The velocity parts (ẋ/τ, the viscous column) are left out:
+/// inertia column; without the shared term the load inertia is biased low (errors in
+/// variables). The velocity parts (ẋ/τ, the viscous column) are left out:
 /// relative to its signal a velocity's noise is ~ω_c² below an acceleration's.
 fn column_noise(model: &Model, p: &Prepared, d: &Design) -> Vec<(usize, usize, f64)> {
     let rows = d.live_rows as f64;
