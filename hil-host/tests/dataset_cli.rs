@@ -340,6 +340,29 @@ fn units_reach_the_json_the_model_file_and_the_text() {
         "{shown}"
     );
 
+    // Fitted to the command in volts, the parameters are in volts: V·s²/m, not kg.
+    let v = ok(hil()
+        .current_dir(&d)
+        .args([
+            "fit",
+            "lin.csv",
+            "--input",
+            "cmd_V",
+            "--save-model",
+            "volts.toml",
+            "--json",
+        ])
+        .output()
+        .unwrap());
+    let v: serde_json::Value = serde_json::from_str(&v).unwrap();
+    let units: Vec<&str> = v["report"]["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["unit"].as_str().unwrap())
+        .collect();
+    assert_eq!(units, ["V·s²/m", "V·s/m"], "{v}");
+
     // The same motion logged in radians is a joint's record: the linear model is refused.
     record(&d.join("rot.csv"), ["time_s", "cmd_V", "pos_rad"], 0);
     let o = hil()

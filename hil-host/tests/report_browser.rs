@@ -104,6 +104,12 @@ fn the_compare_report_renders_in_a_browser_with_every_plot_drawn() {
         ])
         .output()
         .unwrap());
+    // A model name that would end the page's script, open a comment or a tag if written raw.
+    let base = std::fs::read_to_string(d.join("base.toml")).unwrap();
+    let first = base.lines().next().unwrap();
+    assert!(first.starts_with("name = "), "{first}");
+    let hostile = r#"name = "base </script><!--<script> & <b>bold""#;
+    std::fs::write(d.join("base.toml"), base.replacen(first, hostile, 1)).unwrap();
     let out = ok(hil()
         .current_dir(&d)
         .args([

@@ -423,7 +423,7 @@ fn stamp(j: &mut serde_json::Value, rec: &Recording, mode: Mode) -> PyResult<()>
 /// `model` (or the baseline) with its free parameters fitted to `p`, as `diagnose` starts.
 fn fitted(rec: &Recording, m: Option<&Model>, p: &Prepared) -> PyResult<model::Model> {
     let mut m = m.map_or_else(model::Model::baseline, |m| m.inner.clone());
-    m.on_axis(p.axis).map_err(model_error)?;
+    m.on_axis(p.axis, &p.input_unit).map_err(model_error)?;
     if m.params().iter().any(|q| q.free) {
         refine::refit_all(&mut m, p).map_err(|e| fit_error("fitting the free parameters", e))?;
     }
@@ -518,7 +518,7 @@ fn py_fit(
     };
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
-        m.on_axis(p.axis).map_err(model_error)?;
+        m.on_axis(p.axis, &p.input_unit).map_err(model_error)?;
         let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
         let as_given = model.map(|_| {
             json!({
@@ -566,7 +566,7 @@ fn py_compare(
         let m = match (model, refit) {
             (Some(m), false) => {
                 let mut m = m.inner.clone();
-                m.on_axis(p.axis).map_err(model_error)?;
+                m.on_axis(p.axis, &p.input_unit).map_err(model_error)?;
                 m
             }
             _ => fitted(rec, model, &p)?,

@@ -237,6 +237,7 @@ fn build(motor: &MotorRow, d: &Defaults, r: &TransmissionRow) -> Model {
             r.title
         ),
         axis: None,
+        input_unit: None,
         motor: sections::motor::Params {
             inertia: fixed(r.input_inertia),
             damping: fixed(0.0),

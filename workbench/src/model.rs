@@ -97,6 +97,9 @@ pub struct Model {
     /// What its coordinate measures: from its file, or from the data it was fitted to
     /// ([`Model::on_axis`]); `None` reads as rotary.
     pub axis: Option<Axis>,
+    /// The unit of the input it was fitted to or compared with, when that is not the axis's
+    /// force (a command in V): its parameters are then in that unit, not in N·m.
+    pub input_unit: Option<String>,
 }
 
 /// Model file problems.
@@ -202,12 +205,16 @@ impl Model {
             effects: vec![EffectEntry::new(EffectKind::Viscous, Shape::default())],
             template: None,
             axis: None,
+            input_unit: None,
         }
     }
 
-    /// Take the axis of the data (`Prepared::axis`) the model is fitted to or compared with;
-    /// a model file that names the other kind of axis is an error.
-    pub fn on_axis(&mut self, data: Axis) -> Result<(), ModelError> {
+    /// Take the axis and input unit of the data (`Prepared::axis`, `Prepared::input_unit`) the
+    /// model is fitted to or compared with; a model file that names the other kind of axis is
+    /// an error.
+    pub fn on_axis(&mut self, data: Axis, input_unit: &str) -> Result<(), ModelError> {
+        self.input_unit = (!input_unit.is_empty() && input_unit != data.unit("N·m"))
+            .then(|| input_unit.to_string());
         match self.axis {
             Some(a) if a != data => {
                 let units =
@@ -398,6 +405,7 @@ impl Model {
             effects: Vec::new(),
             template: Some(sim.clone()),
             axis: sim.axis,
+            input_unit: sim.input_unit.clone(),
         };
         for kind in sim.effects.kinds() {
             let record = sim.fit.effects.get(kind.name());
@@ -492,6 +500,7 @@ impl Model {
         });
         sim.name = self.name.clone();
         sim.axis = self.axis;
+        sim.input_unit = self.input_unit.clone();
         let n = sim.plant.gear_ratio.value;
         let b = n * n * sim.motor.damping.value + sim.plant.output_damping.value;
         // Effects removed from the fit are removed from the file.

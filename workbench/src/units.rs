@@ -132,7 +132,7 @@ pub fn unit_of(column: &str) -> Result<(&'static str, f64), UnknownUnit> {
 }
 
 /// A number in engineering form for people: 4 significant digits, plain between 10⁻³ and
-/// 10⁵ (`9.735`, `0.01234`, `12345`), else with an exponent that is a multiple of 3
+/// 10⁵ (`9.735`, `0.01234`, `12350`), else with an exponent that is a multiple of 3
 /// (`1.235e6`, `4.5e-9`).
 pub fn eng(x: f64) -> String {
     if !x.is_finite() {
@@ -141,7 +141,6 @@ pub fn eng(x: f64) -> String {
     if x == 0.0 {
         return "0".into();
     }
-    let a = x.abs();
     let trim = |s: String| {
         if s.contains('.') {
             s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -149,14 +148,22 @@ pub fn eng(x: f64) -> String {
             s
         }
     };
-    if (1e-3..1e5).contains(&a) {
-        let digits = (3 - a.log10().floor() as i32).max(0) as usize;
-        return trim(format!("{x:.digits$}"));
+    // Four significant digits of x, in scientific form: rounding first decides the decade
+    // (9.99996e5 is 1.000e6, not 1000e3).
+    let sci = format!("{x:.3e}");
+    let (mantissa, exp) = sci.split_once('e').unwrap_or((&sci, "0"));
+    let exp: i32 = exp.parse().unwrap_or(0);
+    let m: f64 = mantissa.parse().unwrap_or(x);
+    if (-3..5).contains(&exp) {
+        let digits = (3 - exp).max(0) as usize;
+        return trim(format!("{:.digits$}", m * 10f64.powi(exp)));
     }
-    let e3 = (a.log10() / 3.0).floor() as i32 * 3;
-    let m = x / 10f64.powi(e3);
-    let digits = (3 - m.abs().log10().floor() as i32).max(0) as usize;
-    format!("{}e{e3}", trim(format!("{m:.digits$}")))
+    let e3 = exp.div_euclid(3) * 3;
+    let digits = (3 - (exp - e3)) as usize;
+    format!(
+        "{}e{e3}",
+        trim(format!("{:.digits$}", m * 10f64.powi(exp - e3)))
+    )
 }
 
 #[cfg(test)]
@@ -216,13 +223,17 @@ mod tests {
         for (x, s) in [
             (9.7351, "9.735"),
             (0.012346, "0.01235"),
-            (12345.0, "12345"),
+            (12346.0, "12350"),
             (95.0, "95"),
             (-3.179, "-3.179"),
             (1.2346e6, "1.235e6"),
             (4.5e-9, "4.5e-9"),
             (0.0, "0"),
             (f64::NAN, "NaN"),
+            (999_999.0, "1e6"),
+            (0.00099999, "0.001"),
+            (99_999.9, "100e3"),
+            (-2.5e-7, "-250e-9"),
         ] {
             assert_eq!(eng(x), s, "{x}");
         }

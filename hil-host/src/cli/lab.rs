@@ -131,6 +131,11 @@ pub struct ReportArgs {
     /// Share of ticks without an actuator frame above which the run counts as degraded.
     #[arg(long, default_value_t = report::MAX_LOSS)]
     pub max_loss: f64,
+}
+
+/// The HTML report of a run that records (`demo`, `run`).
+#[derive(Debug, Clone, Args)]
+pub struct HtmlArgs {
     /// Also write an HTML report (zoomable plots, the report, the files with their hashes)
     /// into this directory, as `compare` and `diagnose --auto` do (`demo`: a subdirectory per
     /// scenario).
@@ -219,6 +224,8 @@ pub struct DemoArgs {
     pub sensor_timeout_us: Option<u32>,
     #[command(flatten)]
     pub report: ReportArgs,
+    #[command(flatten)]
+    pub html: HtmlArgs,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -340,7 +347,7 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             .iter()
             .map(|p| p.display().to_string())
             .collect();
-        if let Some(dir) = &a.report.html {
+        if let Some(dir) = &a.html.html {
             let html = html_report(
                 &dir.join(&stem),
                 &format!("demo {} — {}", kind.name(), a.plant.label()),
@@ -350,7 +357,7 @@ pub fn demo(a: DemoArgs) -> Result<()> {
                 lab.scenario.scale.gear_ratio(),
                 &[&csv, &log, &png],
                 &a.plant.model.iter().cloned().collect::<Vec<_>>(),
-                a.report.png,
+                a.html.png,
             )?;
             r.files.push(html.display().to_string());
         }
@@ -828,6 +835,8 @@ pub struct RunArgs {
     pub inject: Vec<String>,
     #[command(flatten)]
     pub report: ReportArgs,
+    #[command(flatten)]
+    pub html: HtmlArgs,
     /// The card: `host` (a thread of this process), `qemu` (the firmware's qemu-pil image
     /// under qemu-system-arm, a thread relaying the bus to it over SLCAN) or `qemu:IMAGE`.
     #[arg(long, default_value = "host")]
@@ -1042,7 +1051,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         .flatten()
         .map(|p| p.display().to_string())
         .collect();
-    if let Some(dir) = &a.report.html {
+    if let Some(dir) = &a.html.html {
         let csv = rec
             .csv_path()
             .ok_or_else(|| anyhow!("--report needs the recording: give --csv"))?
@@ -1061,7 +1070,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             sc.scale.gear_ratio(),
             &written,
             &a.sup.plant.model.iter().cloned().collect::<Vec<_>>(),
-            a.report.png,
+            a.html.png,
         )?;
         r.files.push(html.display().to_string());
     }
@@ -1143,6 +1152,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
             report: ReportArgs {
                 json: false,
                 max_loss: report::MAX_LOSS,
+            },
+            html: HtmlArgs {
                 html: None,
                 png: false,
             },

@@ -223,7 +223,7 @@ impl DataArgs {
             Some(f) => Model::load(f)?,
             None => Model::baseline(),
         };
-        m.on_axis(p.axis)
+        m.on_axis(p.axis, &p.input_unit)
             .context(self.csv()?.display().to_string())?;
         if m.params().iter().any(|q| q.free) {
             refine::refit_all(&mut m, p).context("fitting the free parameters")?;
@@ -449,7 +449,8 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         let model = match (f, a.refit) {
             (Some(f), false) => {
                 let mut m = Model::load(f)?;
-                m.on_axis(p.axis).context(csv.display().to_string())?;
+                m.on_axis(p.axis, &p.input_unit)
+                    .context(csv.display().to_string())?;
                 m
             }
             _ => a.data.model_fitted(*f, &p)?,
@@ -513,7 +514,10 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
             metrics: m,
         })
         .collect();
-    let finding = report::finding(&compared);
+    let mut finding = report::finding(&compared);
+    if !finding.contains("nothing more") {
+        finding.push_str(" `diagnose` ranks which effect explains what is left.");
+    }
     let charts = report::charts(&compared, &units);
     let mut sections = Vec::new();
     if let Some(r) = &resampled {
@@ -825,7 +829,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             .filter_map(|s| s.added.as_deref())
             .collect();
         let finding = format!(
-            "Added {} and stopped: {}. Final diagnosis: {} {}",
+            "Added {} and stopped: {}. Final diagnosis: {}. {}",
             if added.is_empty() {
                 "nothing".to_string()
             } else {
@@ -1011,7 +1015,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         None => Model::baseline(),
     };
     model
-        .on_axis(p.axis)
+        .on_axis(p.axis, &p.input_unit)
         .context(a.data.csv()?.display().to_string())?;
     let kind = match &a.add {
         Some(n) => {

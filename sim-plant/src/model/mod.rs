@@ -66,6 +66,10 @@ pub struct Model {
     /// same either way, see [`Axis`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axis: Option<Axis>,
+    /// The unit of the input a fitter measured, when it is not the axis's force (a command
+    /// in `V`): the torque-like parameters are in it (N·m·s/rad reads V·s/rad).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_unit: Option<String>,
     /// Motor-shaft data.
     #[serde(default)]
     pub motor: sections::motor::Params,
@@ -93,6 +97,7 @@ impl Default for Model {
             name: unnamed(),
             description: String::new(),
             axis: None,
+            input_unit: None,
             motor: Default::default(),
             plant: Default::default(),
             sensors: Default::default(),
@@ -272,7 +277,17 @@ impl Model {
         if let Some(axis) = self.axis {
             s.push_str(&format!("axis = \"{}\"\n", axis.name()));
         }
+        if let Some(u) = &self.input_unit {
+            s.push_str(&format!("input_unit = {}\n", toml_string(u)));
+        }
         let axis = self.axis.unwrap_or_default();
+        let unit = |canonical: &str| match &self.input_unit {
+            None => axis.unit(canonical),
+            Some(u) => axis
+                .unit(canonical)
+                .replace(&axis.unit("kg·m²"), &format!("{u}·s²/{}", axis.unit("rad")))
+                .replace(&axis.unit("N·m"), u),
+        };
         let mut section =
             |title: &str, comment: &str, entries: Vec<(&'static ParamSpec, &Param)>| {
                 s.push_str(&format!("\n[{title}]"));
@@ -285,7 +300,7 @@ impl Model {
                         "{} = {}  # {}\n",
                         spec.name,
                         p.to_toml_value(),
-                        axis.unit(spec.unit)
+                        unit(spec.unit)
                     ));
                 }
             };

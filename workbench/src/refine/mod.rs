@@ -243,12 +243,19 @@ fn refit_from(
 /// Parameter table of a model.
 pub fn param_rows(model: &Model) -> Vec<ParamRow> {
     let axis = model.axis.unwrap_or_default();
+    // A canonical unit as this model's data measure it: N·m → N on a linear axis, and → V
+    // (V·s²/rad for an inertia) when the input was a command in V.
+    let unit = |canonical: &str| match &model.input_unit {
+        None => axis.unit(canonical),
+        Some(u) if canonical == "kg·m²" => format!("{u}·s²/{}", axis.unit("rad")),
+        Some(u) => axis.unit(canonical).replace(&axis.unit("N·m"), u),
+    };
     let mut rows = vec![ParamRow {
         owner: "inertia".into(),
         name: model.inertia.name.clone(),
         value: model.inertia.value,
         sigma: model.inertia.sigma.unwrap_or(0.0),
-        unit: axis.unit("kg·m²"),
+        unit: unit("kg·m²"),
     }];
     for e in &model.effects {
         let specs = e.kind.params();
@@ -261,7 +268,7 @@ pub fn param_rows(model: &Model) -> Vec<ParamRow> {
                 unit: specs
                     .iter()
                     .find(|s| s.name == q.name)
-                    .map_or_else(String::new, |s| axis.unit(s.unit)),
+                    .map_or_else(String::new, |s| unit(s.unit)),
             });
         }
         if let Some(a) = e.kind.fit_traits().smooth_shape {
@@ -270,7 +277,7 @@ pub fn param_rows(model: &Model) -> Vec<ParamRow> {
                 name: "shape".into(),
                 value: (a.get)(&e.shape),
                 sigma: 0.0,
-                unit: axis.unit(a.unit),
+                unit: unit(a.unit),
             });
         }
     }

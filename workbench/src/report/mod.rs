@@ -25,6 +25,7 @@ pub use draw::{png, svg};
 use std::path::PathBuf;
 
 use super::metrics::Metrics;
+pub use super::metrics::{band99, ccf_sigma, driver, MAX_LAG, Z99, Z99_ALL_LAGS};
 use super::residual::{Mode, Residual};
 pub use super::units::eng;
 
@@ -141,8 +142,12 @@ pub fn welch(x: &[f64], dt: f64) -> Vec<(f64, f64)> {
         start += nseg / 2;
     }
     let scale = dt / (wss * count.max(1) as f64);
+    // One-sided: every bin but DC and Nyquist (which have no mirror image) doubled.
     (1..=nseg / 2)
-        .map(|k| (k as f64 / (nseg as f64 * dt), acc[k] * scale * 2.0))
+        .map(|k| {
+            let fold = if k == nseg / 2 { 1.0 } else { 2.0 };
+            (k as f64 / (nseg as f64 * dt), acc[k] * scale * fold)
+        })
         .collect()
 }
 
@@ -154,6 +159,30 @@ fn thin(points: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
     }
     let step = points.len().div_ceil(max);
     points.into_iter().step_by(step).collect()
+}
+
+/// A time series cut to about `max` points that keeps its extremes: each run of samples
+/// gives its lowest and highest, in order, so a burst one sample wide still shows.
+fn envelope(points: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
+    let step = points.len().div_ceil(max.max(2) / 2).max(1);
+    if step <= 2 {
+        return points;
+    }
+    let mut out = Vec::with_capacity(2 * points.len() / step + 2);
+    for run in points.chunks(step) {
+        let lo = run.iter().min_by(|a, b| a.1.total_cmp(&b.1));
+        let hi = run.iter().max_by(|a, b| a.1.total_cmp(&b.1));
+        if let (Some(&lo), Some(&hi)) = (lo, hi) {
+            if lo.0 == hi.0 {
+                out.push(lo);
+            } else if lo.0 < hi.0 {
+                out.extend([lo, hi]);
+            } else {
+                out.extend([hi, lo]);
+            }
+        }
+    }
+    out
 }
 
 /// The units of a record's axes, for labels: the residual's (the input's for the equation
@@ -178,23 +207,12 @@ pub struct Compared<'a> {
     pub metrics: &'a Metrics,
 }
 
-/// Lags of the residual correlation charts (samples).
-pub const MAX_LAG: usize = 50;
-
-/// z for a two-sided 99 % band of a normal estimate (MATLAB's `resid` default).
-pub const Z99: f64 = 2.575_829_303_548_901;
-
-/// The 99 % band of a sample (auto/cross) correlation of `n` samples under "white residual,
-/// independent of the input": ±z/√n.
-pub fn band99(n: usize) -> f64 {
-    Z99 / (n.max(1) as f64).sqrt()
-}
-
-/// The largest |correlation| outside lag 0 of the residual's autocorrelation, and of its
-/// cross-correlation with the input: (lag, value), for the finding and the JSON.
-pub fn worst_lags(res: &Residual) -> ((i64, f64), (i64, f64)) {
-    let worst = |it: &mut dyn Iterator<Item = (i64, f64)>| {
-        it.fold(
+/// The largest |cross-correlation| of the residual with its [`driver`], (lag, value).
+pub fn worst_ccf(res: &Residual) -> (i64, f64) {
+    let (x, _) = driver(res);
+    super::stats::cross_correlation(&res.residual, x, MAX_LAG)
+        .into_iter()
+        .fold(
             (0, 0.0f64),
             |(l, m), (k, c)| {
                 if c.abs() > m.abs() {
@@ -204,12 +222,6 @@ pub fn worst_lags(res: &Residual) -> ((i64, f64), (i64, f64)) {
                 }
             },
         )
-    };
-    let acf = super::stats::autocorrelation(&res.residual, MAX_LAG);
-    let a = worst(&mut acf.iter().enumerate().skip(1).map(|(k, c)| (k as i64, *c)));
-    let ccf = super::stats::cross_correlation(&res.residual, &res.input, MAX_LAG);
-    let c = worst(&mut ccf.into_iter());
-    (a, c)
 }
 
 /// The charts of `compare` for one or several models on one record (all residuals share the
@@ -235,21 +247,21 @@ pub fn charts(models: &[Compared<'_>], units: &Units) -> Vec<Chart> {
     };
     let legend = |c: &Compared<'_>| format!("{} (fit {:.1} %)", c.name, c.metrics.fit_percent);
     let per_model = |f: &dyn Fn(&Compared<'_>) -> Series| models.iter().map(f).collect::<Vec<_>>();
-    let band = band99(t.len());
-    let band_lines = |lo: f64, hi: f64| {
+    let band_lines = |lo: f64, hi: f64, band: f64, name: &str| {
         vec![
-            Series::reference("99 % band", vec![(lo, band), (hi, band)]),
+            Series::reference(name, vec![(lo, band), (hi, band)]),
             Series::reference("", vec![(lo, -band), (hi, -band)]),
         ]
     };
+    let (_, driven_by) = driver(res0);
     let period = first.metrics.phase_period;
 
     let mut overlay = vec![Series::reference(
         "measured",
-        thin(zip(t, &res0.measured), MAX),
+        envelope(zip(t, &res0.measured), MAX),
     )];
     overlay.extend(per_model(&|c| {
-        Series::line(legend(c), thin(zip(t, &c.residual.predicted), MAX))
+        Series::line(legend(c), envelope(zip(t, &c.residual.predicted), MAX))
     }));
     let mut acf = per_model(&|c| {
         let r = super::stats::autocorrelation(&c.residual.residual, MAX_LAG);
@@ -258,12 +270,25 @@ pub fn charts(models: &[Compared<'_>], units: &Units) -> Vec<Chart> {
             r.iter().enumerate().map(|(k, v)| (k as f64, *v)).collect(),
         )
     });
-    acf.extend(band_lines(0.0, MAX_LAG as f64));
+    acf.extend(band_lines(
+        0.0,
+        MAX_LAG as f64,
+        band99(t.len()),
+        "99 % band",
+    ));
     let mut ccf = per_model(&|c| {
-        let r = super::stats::cross_correlation(&c.residual.residual, &c.residual.input, MAX_LAG);
+        let (x, _) = driver(c.residual);
+        let r = super::stats::cross_correlation(&c.residual.residual, x, MAX_LAG);
         Series::line(c.name, r.iter().map(|&(k, v)| (k as f64, v)).collect())
     });
-    ccf.extend(band_lines(-(MAX_LAG as f64), MAX_LAG as f64));
+    // The band of the first model's residual (each model's differs with its whiteness).
+    let (x0, _) = driver(res0);
+    ccf.extend(band_lines(
+        -(MAX_LAG as f64),
+        MAX_LAG as f64,
+        Z99 * ccf_sigma(&res0.residual, x0),
+        &format!("99 % band ({})", first.name),
+    ));
     let mut spectrum = per_model(&|c| {
         Series::line(
             c.name,
@@ -295,26 +320,31 @@ pub fn charts(models: &[Compared<'_>], units: &Units) -> Vec<Chart> {
             title: "residual vs time".into(),
             x_label: "time [s]".into(),
             y_label: format!("residual [{su}]"),
-            series: per_model(&|c| Series::line(c.name, thin(zip(t, &c.residual.residual), MAX))),
+            series: per_model(&|c| {
+                Series::line(c.name, envelope(zip(t, &c.residual.residual), MAX))
+            }),
         },
         Chart {
             id: "residual_acf".into(),
             title: "residual autocorrelation, 99 % band of a white residual".into(),
-            x_label: "lag [samples]".into(),
+            x_label: format!("lag [samples of {} s]", eng(dt)),
             y_label: "correlation".into(),
             series: acf,
         },
         Chart {
             id: "input_ccf".into(),
-            title: "input–residual cross-correlation corr(e(t), u(t−k)), 99 % band".into(),
-            x_label: "lag k [samples]".into(),
+            title: format!("{driven_by}–residual cross-correlation corr(e(t), x(t−k)), 99 % band"),
+            x_label: format!("lag k [samples of {} s]", eng(dt)),
             y_label: "correlation".into(),
             series: ccf,
         },
         Chart {
             id: "residual_velocity".into(),
             title: "residual vs velocity".into(),
-            x_label: format!("velocity [{pu}/s]"),
+            x_label: format!(
+                "velocity [{}/s]",
+                if pu.is_empty() { "1" } else { pu.as_str() }
+            ),
             y_label: format!("residual [{su}]"),
             series: per_model(&|c| {
                 Series::dots(c.name, thin(zip(&res0.velocity, &c.residual.residual), MAX))
@@ -384,31 +414,52 @@ pub fn finding(models: &[Compared<'_>]) -> String {
             eng(m.rms / m.noise_floor_rms)
         )
     };
-    let band = band99(best.residual.residual.len());
-    let ((al, av), (cl, cv)) = worst_lags(best.residual);
-    if av.abs() <= band && cv.abs() <= band {
-        s.push_str(
-            " Its residual is white and uncorrelated with the input within the 99 % bands: \
-             the data hold nothing more this model class can explain.",
-        );
+    let res = best.residual;
+    let n = res.residual.len();
+    let dt = match (res.time.first(), res.time.last()) {
+        (Some(a), Some(b)) if n > 1 => (b - a) / (n - 1) as f64,
+        _ => 0.0,
+    };
+    let (x, driven_by) = driver(res);
+    let (lag, r) = worst_ccf(res);
+    let limit = Z99_ALL_LAGS * ccf_sigma(&res.residual, x);
+    let white = m.ljung_box_p >= 0.01;
+    let correlated = r.abs() > limit;
+    if white && !correlated {
+        s.push_str(&format!(
+            " Its residual is white (Ljung–Box p = {:.2}) and uncorrelated with the \
+             {driven_by} at every lag (99 %): the data hold nothing more this model class can \
+             explain.",
+            m.ljung_box_p
+        ));
         return s;
     }
-    if cv.abs() > band {
+    if correlated {
+        let at = format!(
+            "r = {} at lag {lag} ({} s), beyond ±{} for all lags at 99 %",
+            eng(r),
+            eng(lag as f64 * dt),
+            eng(limit)
+        );
+        s.push_str(&if lag >= 0 {
+            format!(
+                " The residual correlates with the {driven_by}'s past ({at}): the model \
+                 misses dynamics the {driven_by} drives."
+            )
+        } else {
+            format!(
+                " The residual leads the {driven_by} ({at}): feedback — a controller acted on \
+                 the error, as on closed-loop data."
+            )
+        });
+    }
+    if !white {
         s.push_str(&format!(
-            " The residual correlates with the input (ρ = {} at lag {cl}, band ±{}): the \
-             model misses dynamics driven by the input.",
-            eng(cv),
-            eng(band)
+            " The residual is not white (Ljung–Box p = {:.2e}): structure a model could still \
+             explain.",
+            m.ljung_box_p
         ));
     }
-    if av.abs() > band {
-        s.push_str(&format!(
-            " The residual is not white (autocorrelation {} at lag {al}, band ±{}).",
-            eng(av),
-            eng(band)
-        ));
-    }
-    s.push_str(" `diagnose` ranks which effect explains what is left.");
     s
 }
 
@@ -428,6 +479,17 @@ mod tests {
             .cloned()
             .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         assert!((peak.0 - 50.0).abs() < 1.5, "{peak:?}");
+    }
+
+    #[test]
+    fn the_envelope_keeps_a_one_sample_burst() {
+        let mut pts: Vec<(f64, f64)> = (0..100_000).map(|i| (i as f64, 0.0)).collect();
+        pts[54_321].1 = 7.0;
+        pts[77_777].1 = -3.0;
+        let e = envelope(pts, 6000);
+        assert!(e.len() <= 6200, "{}", e.len());
+        assert!(e.contains(&(54_321.0, 7.0)) && e.contains(&(77_777.0, -3.0)));
+        assert!(e.windows(2).all(|w| w[0].0 < w[1].0), "in time order");
     }
 
     #[test]

@@ -75,8 +75,8 @@ impl Provenance {
             }
         }
         Ok(Provenance {
-            command: std::env::args()
-                .map(|a| shell_quote(&a))
+            command: std::env::args_os()
+                .map(|a| shell_quote(&a.to_string_lossy()))
                 .collect::<Vec<_>>()
                 .join(" "),
             version: version.to_string(),
@@ -153,11 +153,11 @@ pub struct Page<'a> {
 pub const GLOSSARY: &[(&str, &str)] = &[
     ("fit %", "100·(1 − ‖y − ŷ‖/‖y − ȳ‖), MATLAB's NRMSE fit: 100 % is perfect, 0 % no better than the mean of the record, below 0 worse than it."),
     ("RMS", "root mean square of the residual e = measured − model, in the residual's unit (the input's for the equation error, the position's for the output error)."),
-    ("noise floor, ×floor", "the RMS of the white noise in the residual, estimated from its second difference (smooth model error cancels there). ×floor = RMS / floor: near 1, nothing is left that a better model could explain."),
+    ("noise floor, ×floor", "the RMS the residual would have from measurement noise alone: for the equation error, the recorded input's noise and the encoder's noise carried through the differentiator, both measured on the record; otherwise estimated from the residual's second difference (smooth model error cancels there). ×floor = RMS / floor: near 1, nothing is left that a better model could explain. The spectrum draws it spread flat up to Nyquist, as white noise of that RMS would be."),
     ("relative error", "‖e‖/‖y‖ in %, the measure of the EMPS benchmark papers."),
-    ("Ljung–Box Q, p", "a test that the residual is white over its first 20 lags: a small p (below 0.01) says it is not, i.e. it has structure a model could explain."),
+    ("Ljung–Box Q, p", "a test that the residual is white over its first 20 lags: a small p (below 0.01, the finding's threshold) says it is not, i.e. it has structure a model could explain."),
     ("autocorrelation, 99 % band", "corr(e(t), e(t−k)); a white residual stays inside ±2.58/√N at every lag k ≠ 0 (99 % each)."),
-    ("cross-correlation, 99 % band", "corr(e(t), u(t−k)) between the residual and the input; outside ±2.58/√N the model misses dynamics that the input drives (k > 0: the input's past, k < 0: feedback)."),
+    ("cross-correlation, 99 % band", "corr(e(t), x(t−k)) between the residual and x: the input for the output error (as MATLAB's resid), the velocity for the equation error (whose residual is the input minus its prediction, correlated with the input by construction). The band is 2.58·√(Σ r_e(k)·r_x(k) / N), right even when the residual is not white. k > 0: x's past drives the error, dynamics the model misses; k < 0: the error leads x, feedback. The finding tests all 101 lags at once (99 %, Bonferroni), so one lag just outside the per-lag band is no finding."),
     ("ERR", "error reduction ratio: the fraction of the residual's variance that one effect's fingerprint explains by least squares (diagnose ranks the effects by it)."),
     ("Holm p", "an effect's p-value (F-test of its fingerprint against the noise), adjusted by Holm's step-down method for testing every effect of the library at once: below α (0.05) the effect is significant."),
     ("ρ", "the RMS an effect explains, in units of the noise floor: significant but small effects (ρ < 0.25) are not worth a parameter."),
@@ -190,12 +190,16 @@ pub fn write(dir: &Path, page: &Page<'_>, with_png: bool) -> Result<PathBuf, Rep
         nav = nav(page),
     );
     if let Some(z) = page.zoom {
+        // `<`, `>` and `&` as JSON escapes: no text in the data (a model's name) can close
+        // the script element or open a comment inside it.
         let json = serde_json::to_string(z)
             .unwrap_or_default()
-            .replace("</", "<\\/");
+            .replace('<', "\\u003c")
+            .replace('>', "\\u003e")
+            .replace('&', "\\u0026");
         html.push_str(&format!(
             "<h2 id=\"zoom-view\">zoomable time view</h2>\n<p class=\"hint\">Drag across a \
-             panel to zoom to that span; wheel zooms around the cursor, shift+wheel pans; \
+             panel to zoom to that span; ctrl+wheel zooms around the cursor, shift+wheel pans; \
              double-click shows the whole record. Showing <span id=\"zoom-span\"></span>.\n\
              <button id=\"zoom-left\">◀</button> <button id=\"zoom-right\">▶</button> \
              <button id=\"zoom-reset\">whole record</button></p>\n<div id=\"zoom\"></div>\n\

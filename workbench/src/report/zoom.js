@@ -1,6 +1,6 @@
 // The report's zoomable time view: panels that share one time axis, drawn on canvases from
-// the JSON in #zoom-data. Drag across a panel to zoom to that span, wheel to zoom around the
-// cursor, shift+wheel or the arrow buttons to pan, double-click or "whole record" to reset.
+// the JSON in #zoom-data. Drag across a panel to zoom to that span, ctrl+wheel to zoom around
+// the cursor, shift+wheel or the arrow buttons to pan, double-click or "whole record" to reset.
 // Long records are drawn as a min/max envelope per pixel column, so 10^6 samples stay fast.
 // Self-contained: no library, no network.
 (function () {
@@ -111,6 +111,8 @@ function zoomView(data) {
     });
     canvas.addEventListener("dblclick", function () { setView(t[0], t[n - 1]); });
     canvas.addEventListener("wheel", function (ev) {
+      // A plain wheel scrolls the page past the panels; ctrl or shift makes it the view's.
+      if (!ev.ctrlKey && !ev.shiftKey) return;
       ev.preventDefault();
       var span = view[1] - view[0];
       if (ev.shiftKey) {

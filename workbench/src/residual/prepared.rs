@@ -76,6 +76,8 @@ pub struct Prepared {
     /// What the position measures (from its unit: metres are a linear axis), so a model
     /// fitted here names its parameters' units as the data do.
     pub axis: sim_plant::units::Axis,
+    /// The input's unit (`crate::data::input_unit`): the parameters' force unit.
+    pub input_unit: String,
     /// Variance of the load encoder's noise in the load's acceleration (as
     /// [`Prepared::acceleration_noise_var`]; 0 without a load position).
     pub load_acceleration_noise_var: f64,
@@ -290,6 +292,7 @@ impl Prepared {
             acceleration_noise_var,
             load_position,
             axis: sim_plant::units::Axis::of_position_unit(&rec.units.1),
+            input_unit: crate::data::input_unit(&rec.columns),
             load_acceleration_noise_var,
             intersample,
             gear_ratio: rec.columns.gear_ratio,
@@ -425,6 +428,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         acceleration_noise_var: 0.0,
         load_position: Vec::new(),
         axis: sim_plant::units::Axis::Rotary,
+        input_unit: String::new(),
         load_acceleration_noise_var: 0.0,
         intersample,
         gear_ratio: 1.0,
