@@ -228,20 +228,26 @@ impl DataArgs {
         if m.params().iter().any(|q| q.free) {
             refine::refit_all(&mut m, p).context("fitting the free parameters")?;
         }
-        // A model that scores NaN would be diagnosed as "nothing missing" with exit 0.
         let s = refine::score(&m, p);
-        for (what, value) in [("fit %", s.fit_percent), ("RMS", s.rms)] {
-            if !value.is_finite() {
-                return Err(anyhow::Error::new(FitError::NonFiniteScore {
-                    what,
-                    record: "estimation",
-                    value,
-                })
-                .context(self.csv()?.display().to_string()));
-            }
-        }
+        finite_score(s.fit_percent, s.rms, &self.csv()?)?;
         Ok(m)
     }
+}
+
+/// An error naming `csv` unless a model's fit % and RMS on it are finite: a model that scores
+/// NaN would be diagnosed as "nothing missing" with exit 0.
+fn finite_score(fit_percent: f64, rms: f64, csv: &Path) -> anyhow::Result<()> {
+    for (what, value) in [("fit %", fit_percent), ("RMS", rms)] {
+        if !value.is_finite() {
+            return Err(anyhow::Error::new(FitError::NonFiniteScore {
+                what,
+                record: "estimation",
+                value,
+            })
+            .context(csv.display().to_string()));
+        }
+    }
+    Ok(())
 }
 
 /// `file` read with `cols` and differentiated, and how it was resampled, if it was (for a
@@ -470,16 +476,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
             );
         }
         let m = metrics::compute(&res, a.period);
-        for (what, value) in [("fit %", m.fit_percent), ("RMS", m.rms)] {
-            if !value.is_finite() {
-                return Err(anyhow::Error::new(FitError::NonFiniteScore {
-                    what,
-                    record: "estimation",
-                    value,
-                })
-                .context(csv.display().to_string()));
-            }
-        }
+        finite_score(m.fit_percent, m.rms, &csv)?;
         models.push((model, res, m));
     }
     // Two files may hold models of one name: the legend tells them apart by file.

@@ -17,6 +17,54 @@ fn range(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// A curve of a run's plot: legend name, PNG colour, drawn as a reference (a setpoint, grey
+/// in the HTML view) rather than a measurement, and how to read it from a row.
+type Curve<'a> = (&'a str, RGBColor, bool, Box<dyn Fn(&Row) -> f64 + 'a>);
+
+/// The three panels every plot of a run shows, (id, y label with unit, curves): the PNG and
+/// the HTML report draw the same ones.
+fn panels<'a>(gear_ratio: f64) -> Vec<(&'a str, &'a str, Vec<Curve<'a>>)> {
+    vec![
+        (
+            "position",
+            "position [output rad]",
+            vec![
+                (
+                    "setpoint",
+                    BLACK,
+                    true,
+                    Box::new(|r: &Row| r.setpoint_pos_rad),
+                ),
+                (
+                    "motor / N",
+                    BLUE,
+                    false,
+                    Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio),
+                ),
+                ("output", RED, false, Box::new(|r: &Row| r.output_pos_rad)),
+            ],
+        ),
+        (
+            "torque_command",
+            "torque command [motor N·m]",
+            vec![("command", BLUE, false, Box::new(|r: &Row| r.torque_cmd_nm))],
+        ),
+        (
+            "torque_sensor",
+            "torque sensor [output N·m]",
+            vec![
+                ("sensor", RED, false, Box::new(|r: &Row| r.torque_sensor_nm)),
+                (
+                    "setpoint",
+                    BLACK,
+                    true,
+                    Box::new(|r: &Row| r.setpoint_torque_nm),
+                ),
+            ],
+        ),
+    ]
+}
+
 /// Draws the three panels of a recording to `path` (PNG, 1200×900).
 pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Result<()> {
     let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
@@ -27,34 +75,9 @@ pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Resu
     let panels = root.split_evenly((3, 1));
     let t0 = rows.first().map(|r| r.time_s).unwrap_or(0.0);
     let t1 = rows.last().map(|r| r.time_s).unwrap_or(1.0).max(t0 + 1e-3);
-    type Series<'a> = Vec<(&'a str, RGBColor, Box<dyn Fn(&Row) -> f64 + 'a>)>;
-    let specs: Vec<(&str, Series)> = vec![
-        (
-            "position (output rad)",
-            vec![
-                ("setpoint", BLACK, Box::new(|r: &Row| r.setpoint_pos_rad)),
-                (
-                    "motor / N",
-                    BLUE,
-                    Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio),
-                ),
-                ("output", RED, Box::new(|r: &Row| r.output_pos_rad)),
-            ],
-        ),
-        (
-            "torque command (motor N·m)",
-            vec![("command", BLUE, Box::new(|r: &Row| r.torque_cmd_nm))],
-        ),
-        (
-            "torque sensor (output N·m)",
-            vec![
-                ("sensor", RED, Box::new(|r: &Row| r.torque_sensor_nm)),
-                ("setpoint", BLACK, Box::new(|r: &Row| r.setpoint_torque_nm)),
-            ],
-        ),
-    ];
-    for (area, (ylabel, series)) in panels.iter().zip(specs) {
-        let all = series.iter().flat_map(|(_, _, f)| rows.iter().map(f));
+    let specs = self::panels(gear_ratio);
+    for (area, (_, ylabel, series)) in panels.iter().zip(specs) {
+        let all = series.iter().flat_map(|(_, _, _, f)| rows.iter().map(f));
         let (lo, hi) = range(all.collect::<Vec<_>>().into_iter());
         let mut chart = ChartBuilder::on(area)
             .margin(8)
@@ -68,7 +91,7 @@ pub fn plot_run(path: &Path, title: &str, rows: &[Row], gear_ratio: f64) -> Resu
             .y_desc(ylabel)
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
-        for (name, color, f) in series {
+        for (name, color, _, f) in series {
             chart
                 .draw_series(LineSeries::new(
                     rows.iter().map(|r| (r.time_s, f(r))),
@@ -130,35 +153,7 @@ pub fn html_report(
     let kept = super::recorder::read_rows(csv)?
         .step_by(every)
         .collect::<Result<Vec<Row>>>()?;
-    type Column<'a> = (&'a str, bool, Box<dyn Fn(&Row) -> f64 + 'a>);
-    let panels: Vec<(&str, &str, Vec<Column>)> = vec![
-        (
-            "position",
-            "position [output rad]",
-            vec![
-                ("setpoint", true, Box::new(|r: &Row| r.setpoint_pos_rad)),
-                (
-                    "motor / N",
-                    false,
-                    Box::new(move |r: &Row| r.motor_pos_rad / gear_ratio),
-                ),
-                ("output", false, Box::new(|r: &Row| r.output_pos_rad)),
-            ],
-        ),
-        (
-            "torque_command",
-            "torque command [motor N·m]",
-            vec![("command", false, Box::new(|r: &Row| r.torque_cmd_nm))],
-        ),
-        (
-            "torque_sensor",
-            "torque sensor [output N·m]",
-            vec![
-                ("setpoint", true, Box::new(|r: &Row| r.setpoint_torque_nm)),
-                ("sensor", false, Box::new(|r: &Row| r.torque_sensor_nm)),
-            ],
-        ),
-    ];
+    let panels = self::panels(gear_ratio);
     let time: Vec<f64> = kept.iter().map(|r| r.time_s).collect();
     let zoom = ZoomView {
         x_label: "time [s]".into(),
@@ -169,7 +164,7 @@ pub fn html_report(
                 y_label: label.to_string(),
                 series: cols
                     .iter()
-                    .map(|(name, reference, f)| Trace {
+                    .map(|(name, _, reference, f)| Trace {
                         name: name.to_string(),
                         y: kept.iter().map(|r| f(r) as f32).collect(),
                         reference: *reference,
@@ -187,7 +182,7 @@ pub fn html_report(
             y_label: label.to_string(),
             series: cols
                 .iter()
-                .map(|(name, reference, f)| {
+                .map(|(name, _, reference, f)| {
                     let points = kept.iter().map(|r| (r.time_s, f(r))).collect();
                     if *reference {
                         Series::reference(*name, points)
