@@ -62,6 +62,8 @@ fn joint_cfg() -> JointConfig {
             .unwrap()
         }),
         ripple: Some(units::ripple_table(&s, 128, &tab).unwrap()),
+        offset: 120,
+        gravity: Some(units::ripple_table(&s, 138_240, &tab).unwrap()),
         tau_max: 20000,
         transfer_shift: 6,
     }

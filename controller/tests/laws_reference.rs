@@ -574,6 +574,8 @@ fn joint_pipeline_tracks_f64() {
                 friction: Some(fr),
                 imp_comp: Some(ic),
                 ripple: Some(rip.clone()),
+                offset: 0,
+                gravity: None,
                 tau_max: 32767,
                 transfer_shift: 6,
             };
@@ -642,6 +644,8 @@ proptest! {
             friction: Some(FrictionConfig { tau_c_pos: tp, tau_c_neg: tn, slope_pos: kp, slope_neg: kd, viscous: b, undercomp: alpha, limit: lim }),
             imp_comp: Some(ImpCompConfig { kd: km, gain: ki, alpha, limit: lim }),
             ripple: Some(RippleTable::new(period, &entries).unwrap()),
+            offset: 0,
+            gravity: None,
             tau_max: lim,
             transfer_shift: shift,
         };

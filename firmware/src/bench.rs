@@ -243,6 +243,8 @@ impl Bench {
                 friction: Some(fric),
                 imp_comp: Some(ic),
                 ripple: Some(rip.clone()),
+                offset: 120,
+                gravity: Some(rip.clone()),
                 tau_max: 20000,
                 transfer_shift: 6,
             },

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! τ = clamp_{±tau_max}( main law(mode) − B1e·ẋ1 + friction FF + impedance comp + ripple
-//!                        + bumpless transfer offset )
+//!                        + gravity FF + offset FF + bumpless transfer offset )
 //! ```
 //!
 //! * `main law` is one of [`Mode`]: off, position PD/PID (colocated / non-colocated), damper,
@@ -97,6 +97,10 @@ pub struct JointConfig {
     pub imp_comp: Option<ImpCompConfig>,
     /// Ripple / cogging table on x1.
     pub ripple: Option<RippleTable>,
+    /// Constant feed-forward (a measured offset), LSB.
+    pub offset: Torque,
+    /// Gravity feed-forward: a table over one output revolution of x1.
+    pub gravity: Option<RippleTable>,
     /// Final |τ| limit, LSB (values above `i16::MAX` are treated as `i16::MAX`).
     pub tau_max: Torque,
     /// Transfer-offset decay shift (τ ≈ 2^shift ticks); 0 means "no offset, jump".
@@ -111,6 +115,8 @@ impl Default for JointConfig {
             friction: None,
             imp_comp: None,
             ripple: None,
+            offset: 0,
+            gravity: None,
             tau_max: 0,
             transfer_shift: 6,
         }
@@ -218,7 +224,7 @@ impl JointState {
         };
         let mut flags = law.flags;
         // Every term but the damping is an i32; the damping (|·| < 2⁶²) is clamped to ±2⁴⁰,
-        // far beyond any torque limit, so the sum of five terms stays < 2⁴³ and plain adds
+        // far beyond any torque limit, so the sum of seven terms stays < 2⁴³ and plain adds
         // are exact — and the final clamp sees the same sign and saturation as the exact sum.
         let damping = cfg
             .input_damping
@@ -240,6 +246,10 @@ impl JointState {
         if let Some(r) = &cfg.ripple {
             sum = sum.wrapping_add(i64::from(r.torque(m.x1)));
         }
+        if let Some(g) = &cfg.gravity {
+            sum = sum.wrapping_add(i64::from(g.torque(m.x1)));
+        }
+        sum = sum.wrapping_add(i64::from(cfg.offset));
         self.last_kind = cfg.mode.kind();
         (sum, law.tau, flags)
     }

@@ -32,6 +32,8 @@ pub struct RippleTable {
     period: Reciprocal,
     /// 2⁶³ mod period: moves an `i64` position into `u64` without changing its residue.
     offset: u32,
+    /// Counts added to the position before the lookup, in [0, period).
+    phase: u32,
     table: Vec<i16, RIPPLE_MAX>,
 }
 
@@ -51,8 +53,15 @@ impl RippleTable {
         Ok(RippleTable {
             period,
             offset,
+            phase: 0,
             table,
         })
+    }
+
+    /// The same table, looked up at `x + phase` (the phase taken modulo the period).
+    pub fn with_phase(mut self, phase: u32) -> Self {
+        self.phase = self.period.div_rem_u32(phase).1;
+        self
     }
 
     /// Period in counts.
@@ -68,6 +77,7 @@ impl RippleTable {
     /// Interpolated correction at multi-turn position `x` (motor counts).
     #[inline]
     pub fn torque(&self, x: Counts) -> Torque {
+        let x = x.saturating_add(i64::from(self.phase));
         let n = self.table.len() as u32; // 2..=64
         let p = self.period;
         let period = p.divisor(); // ≥ n ≥ 2

@@ -19,6 +19,7 @@
 //! | 0x0700–0x07FF | watchdogs and fault reaction |
 //! | 0x0800–0x08FF | telemetry and heartbeat |
 //! | 0x0900–0x09FF | plant constants (stability guard, encoders) |
+//! | 0x0A00–0x0AFF | feed-forward of position-dependent loads (offset, gravity) |
 //!
 //! Machine units (all integers, so the 1 kHz loop never converts): "τLSB" = motor torque LSB
 //! = 0.1 mN·m; "τoLSB" = output torque LSB = 0.01 N·m; "tick" = one control period (nominal
@@ -30,8 +31,9 @@
 use super::field::wire_enum;
 use super::ParamStatus;
 
-/// Entries the card must be able to stage in one set (ripple table + its settings + margin).
-pub const STAGING_CAPACITY: usize = 96;
+/// Entries the card must be able to stage in one set: a whole gain set with friction, ripple
+/// table and feed-forward (about 110 entries) and a margin.
+pub const STAGING_CAPACITY: usize = 128;
 
 /// Number of ripple-table entries (ids `RIPPLE_TABLE ..= RIPPLE_TABLE + 63`).
 pub const RIPPLE_TABLE_LEN: u16 = 64;
@@ -204,6 +206,10 @@ params! {
     GEAR_RATIO = 0x0903, "gear_ratio", Idle, "Q16.16 (motor rev per output rev)", 1, MAX, 30 * 65_536;
     OUTPUT_COUNTS_PER_REV = 0x0904, "output_counts_per_rev", Idle, "counts (0 = no output encoder)", 0, MAX, 0;
     STABILITY_MARGIN = 0x0905, "stability_margin", Idle, "Q0.16 fraction of the discrete PD bound", 1, 65536, 32_768;
+    // --- 0x0Axx feed-forward ---
+    TORQUE_OFFSET = 0x0A00, "torque_offset", Any, "τLSB (constant, added in every mode)", -TQ, TQ, 0;
+    GRAVITY_SIN = 0x0A01, "gravity_sin", Any, "τLSB (× sin of the output angle)", -TQ, TQ, 0;
+    GRAVITY_COS = 0x0A02, "gravity_cos", Any, "τLSB (× cos of the output angle)", -TQ, TQ, 0;
 }
 
 /// Finds the definition of `id` (`Err(UnknownId)` if none).
