@@ -508,6 +508,7 @@ pub fn friction_config(s: &Scale, g: &FrictionSi) -> Result<FrictionConfig, Unit
         viscous: damping_gain(s, Feedback::Colocated, "viscous", g.viscous)?,
         undercomp: Alpha::from_bits(round_half_away(g.undercomp * 32768.0) as u16),
         limit: torque_limit(s, "limit", g.limit_nm)?,
+        alpha: Alpha::ONE,
     })
 }
 

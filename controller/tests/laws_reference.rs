@@ -432,8 +432,9 @@ fn friction_tracks_f64() {
                 viscous: visc,
                 undercomp: Alpha::from_bits(u),
                 limit: lim,
+                alpha: Alpha::ONE,
             };
-            let o = FrictionComp.step(&c, Vel::from_bits(v));
+            let o = FrictionComp::default().step(&c, Vel::from_bits(v));
             let r = ref_friction(&c, v as f64);
             let err = (o.tau as f64 - r).abs();
             w.see(err);
@@ -557,6 +558,7 @@ fn joint_pipeline_tracks_f64() {
                 viscous: fv,
                 undercomp: DEFAULT_UNDERCOMP,
                 limit: 2000,
+                alpha: Alpha::ONE,
             };
             let ic = ImpCompConfig {
                 kd: ickd,
@@ -641,7 +643,7 @@ proptest! {
         let cfg = JointConfig {
             mode,
             input_damping: InputDamping { b1e: b },
-            friction: Some(FrictionConfig { tau_c_pos: tp, tau_c_neg: tn, slope_pos: kp, slope_neg: kd, viscous: b, undercomp: alpha, limit: lim }),
+            friction: Some(FrictionConfig { tau_c_pos: tp, tau_c_neg: tn, slope_pos: kp, slope_neg: kd, viscous: b, undercomp: alpha, limit: lim, alpha: Alpha::ONE }),
             imp_comp: Some(ImpCompConfig { kd: km, gain: ki, alpha, limit: lim }),
             ripple: Some(RippleTable::new(period, &entries).unwrap()),
             offset: 0,
@@ -738,6 +740,7 @@ fn pos_cfg(ke: f64, be: f64, ki_t: f64) -> JointConfig {
             viscous: Gain::ZERO,
             undercomp: DEFAULT_UNDERCOMP,
             limit: 1000,
+            alpha: Alpha::ONE,
         }),
         input_damping: InputDamping { b1e: gain(0.01) },
         tau_max: 32000,

@@ -292,8 +292,8 @@ impl Bench {
                 })
             }
             Case::Friction => {
-                let c = self.fric;
-                self.lp(steps, move |_, _, m| FrictionComp.step(&c, m.v1).tau)
+                let (c, mut st) = (self.fric, FrictionComp::NEW);
+                self.lp(steps, move |_, _, m| st.step(&c, m.v1).tau)
             }
             Case::ImpComp => {
                 let (c, mut st) = (self.ic, ImpComp::NEW);

@@ -96,6 +96,7 @@ fn record() -> Recording {
             viscous: 0.05,
             under: 0.8,
             ramp_velocity: 0.2,
+            filter_hz: 0.0,
         }),
         ..pid
     };

@@ -133,7 +133,8 @@ pub fn rate_hz(s: &ParamStore) -> u16 {
 }
 
 /// The stability guard on the store's (Ke, Be) read as motor-side colocated PD gains with
-/// the store's rotor inertia, period and margin. Passes when both gains are zero (no PD).
+/// the store's rotor inertia, period and margin, Be less what a viscous friction feed-forward
+/// takes away. Passes when both gains are zero (no PD).
 pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     let (ke_raw, be_raw) = (s.raw(p::KE), s.raw(p::BE));
     if ke_raw == 0 && be_raw == 0 {
@@ -143,7 +144,17 @@ pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     let rad_per_count = core::f64::consts::TAU / cpr;
     let period_s = f64::from(s.raw(p::CONTROL_PERIOD)) * 1e-6;
     let ke_si = q16(ke_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count;
-    let be_si = q16(be_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
+    let per_tick = |raw: i32| q16(raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
+    // A viscous friction feed-forward is +u·Bv·ẋ1: negative damping on the rotor, which the
+    // input damping B1e offsets first and the law's Be after it (the friction it cancels acts
+    // beyond the transmission, where the rotor's fast mode does not feel it).
+    let negative = if s.raw(p::FRICTION_ENABLE) != 0 {
+        let u = f64::from(s.raw(p::UNDER_COMPENSATION)) / 65536.0;
+        (u * per_tick(s.raw(p::VISCOUS_POS)) - per_tick(s.raw(p::B1E))).max(0.0)
+    } else {
+        0.0
+    };
+    let be_si = per_tick(be_raw) - negative;
     let inertia = f64::from(s.raw(p::ROTOR_INERTIA)) * 1e-9;
     let margin = 1.0 - f64::from(s.raw(p::STABILITY_MARGIN)) / 65536.0;
     units::pd_stability(
@@ -278,6 +289,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
             viscous: per_rate(p::VISCOUS_POS)?,
             undercomp: alpha(s.raw(p::UNDER_COMPENSATION)),
             limit: torque_limit,
+            alpha: alpha(s.raw(p::FRICTION_FILTER)),
         })
     } else {
         None

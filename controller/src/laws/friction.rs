@@ -19,12 +19,18 @@
 //! * Cost: below ω_r friction is only partly cancelled; choose ω_r a few times the velocity
 //!   noise floor.
 //!
+//! **The velocity it acts on is low-passed** (`alpha`, 1.0 = none). Friction sits in the
+//! transmission and the load, the feed-forward on the rotor: `+τff(ω)` rising with ω is
+//! negative damping on the rotor's own fast mode against the transmission spring (slope s±
+//! inside the ramp, Bv outside it), which that friction does not damp. A low-pass well below
+//! that mode leaves the rotor the law's damping and still follows the load's slower motion.
+//!
 //! `u` (`undercomp`, default 0.8) scales everything so an experimentally determined τc± is
 //! deliberately not fully cancelled ("slightly below"; direction-dependent friction makes full
 //! compensation only conditionally stable).
 
 use crate::fixed_math::{
-    clamp_sym, mul_i64_u32, round_shr, Alpha, Flags, Gain, Output, Torque, Vel,
+    clamp_sym, mul_i64_u32, round_shr, Alpha, Flags, Gain, LowPass, Output, Torque, Vel,
 };
 
 /// Default under-compensation factor 0.8 (U1F15).
@@ -48,6 +54,8 @@ pub struct FrictionConfig {
     pub undercomp: Alpha,
     /// |output| limit.
     pub limit: Torque,
+    /// Low-pass coefficient of the velocity the compensation acts on (1.0 = none).
+    pub alpha: Alpha,
 }
 
 impl Default for FrictionConfig {
@@ -60,20 +68,31 @@ impl Default for FrictionConfig {
             viscous: Gain::ZERO,
             undercomp: DEFAULT_UNDERCOMP,
             limit: 0,
+            alpha: Alpha::ONE,
         }
     }
 }
 
-/// Friction compensation (stateless: a pure function of the velocity estimate).
+/// Friction compensation: a function of the low-passed velocity estimate.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FrictionComp;
+pub struct FrictionComp {
+    lp: LowPass,
+}
 
 impl FrictionComp {
+    /// Zero state.
+    pub const NEW: FrictionComp = FrictionComp { lp: LowPass::NEW };
+
+    /// Set the filter to `v` (no transient when the compensation is switched on).
+    pub fn prime(&mut self, v: Vel) {
+        self.lp.reset(v.to_bits());
+    }
+
     /// Feed-forward torque for motor velocity `v`.
     #[inline]
     pub fn step(&mut self, cfg: &FrictionConfig, v: Vel) -> Output {
-        let vb = v.to_bits();
+        let vb = self.lp.step(v.to_bits(), cfg.alpha);
         let coulomb = if vb >= 0 {
             cfg.slope_pos
                 .apply(vb)

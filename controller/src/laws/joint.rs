@@ -159,6 +159,8 @@ pub struct JointState {
     pub force: ForceLaw,
     /// Impedance compensation state.
     pub imp_comp: ImpComp,
+    /// Friction compensation state (its velocity low-pass).
+    pub friction: FrictionComp,
     /// Bumpless-transfer offset, torque LSB.
     pub offset: Torque,
     last_kind: ModeKind,
@@ -190,6 +192,7 @@ impl JointState {
             },
             force: ForceLaw::NEW,
             imp_comp: ImpComp::NEW,
+            friction: FrictionComp::NEW,
             offset: 0,
             last_kind: ModeKind::Off,
         }
@@ -232,7 +235,7 @@ impl JointState {
             .clamp(-(1i64 << 40), 1i64 << 40);
         let mut sum = i64::from(law.tau).wrapping_add(damping);
         if let Some(f) = &cfg.friction {
-            let o = FrictionComp.step(f, m.v1);
+            let o = self.friction.step(f, m.v1);
             flags |= o.flags;
             sum = sum.wrapping_add(i64::from(o.tau));
         }
@@ -295,6 +298,7 @@ impl JointState {
     ) {
         let kind = cfg.mode.kind();
         if kind != self.last_kind {
+            self.friction.prime(m.v1);
             self.force.prime(m.tau_env);
             if let Some(ic) = &cfg.imp_comp {
                 let (x, _) = Self::sel(cfg, m);

@@ -180,6 +180,7 @@ params! {
     UNDER_COMPENSATION = 0x0405, "under_compensation", Any, "Q0.16 factor (65536 = 1.0)", 0, 65536, 58_982;
     FRICTION_DEADBAND = 0x0406, "friction_deadband", Any, "counts/s", 0, MAX, 1_000;
     FRICTION_SAME_SIGN_TICKS = 0x0407, "friction_same_sign_ticks", Any, "ticks", 1, 1_000, 3;
+    FRICTION_FILTER = 0x0408, "friction_filter", Any, "Q0.16 low-pass α of the velocity it acts on (65536 = none)", 1, 65536, 65536;
     // --- 0x05xx impedance compensation ---
     IMPEDANCE_COMP_ENABLE = 0x0500, "impedance_comp_enable", Any, "bool (0/1)", 0, 1, 0;
     IMPEDANCE_COMP_STIFFNESS = 0x0501, "impedance_comp_stiffness", Any, "Q16.16 τoLSB per count", 0, MAX, 0;

@@ -12,7 +12,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
 use crate::lab::card_node::CardNode;
-use crate::lab::gains;
+use crate::lab::compensate::{self, Compensation};
+use crate::lab::gains::{self, GainsFile};
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
 use crate::lab::plant_node::PlantNode;
 use crate::lab::plot::{html_report, plot_recording};
@@ -195,6 +196,60 @@ fn bar(len: u64, quiet: bool) -> ProgressBar {
     pb
 }
 
+/// The card's laws beyond the scenario's: a gains file and a model to compensate.
+#[derive(Debug, Clone, Args)]
+pub struct LawArgs {
+    /// Gains in output-side SI from a TOML file: stiffness, damping, integral, input_damping,
+    /// force_kp/kd/ki, km, limits, `[friction]`, `[feedforward]` (see docs/lab.md).
+    #[arg(long, value_name = "FILE.toml")]
+    pub gains: Option<PathBuf>,
+    /// Compensate what a model file (from `diagnose --auto` or `fit`) measured: friction,
+    /// ripple and cogging, offset and gravity become the card's feed-forward; what the card
+    /// cannot compensate is named.
+    #[arg(long, value_name = "MODEL.toml")]
+    pub compensate: Option<PathBuf>,
+    /// Under-compensation of friction (thesis: "slightly below" the measured friction).
+    #[arg(long, default_value_t = compensate::DEFAULT_UNDER, requires = "compensate")]
+    pub under: f64,
+}
+
+impl LawArgs {
+    /// Applies the gains file to `sc` (before any single-gain flag).
+    fn apply_gains(&self, sc: &mut Scenario) -> Result<()> {
+        if let Some(f) = &self.gains {
+            let g = GainsFile::load(f)?;
+            if self.compensate.is_some() && (g.friction.is_some() || g.feedforward.is_some()) {
+                bail!(
+                    "{} sets [friction] or [feedforward] and --compensate sets them from a                      model: give one of the two",
+                    f.display()
+                );
+            }
+            g.apply(&mut sc.gains);
+        }
+        Ok(())
+    }
+
+    /// Applies `--compensate` to `sc`, saying on stderr what goes to the card and what not.
+    fn apply_compensation(&self, sc: &mut Scenario) -> Result<()> {
+        let Some(path) = &self.compensate else {
+            return Ok(());
+        };
+        let m = jointlab_workbench::model::Model::load(path)?.to_sim();
+        let mut c = Compensation::from_model(&m, &sc.scale, self.under)
+            .with_context(|| format!("--compensate {}", path.display()))?;
+        c.within_damping(&sc.gains);
+        for l in &c.applied {
+            eprintln!("compensate: {l}");
+        }
+        for l in &c.left_out {
+            eprintln!("not compensated: {l}");
+        }
+        sc.gains.friction = c.friction;
+        sc.gains.feedforward = c.feedforward;
+        Ok(())
+    }
+}
+
 /// `hil-host demo`.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
@@ -222,6 +277,8 @@ pub struct DemoArgs {
     /// The card's sensor timeout, µs (default 3000).
     #[arg(long)]
     pub sensor_timeout_us: Option<u32>,
+    #[command(flatten)]
+    pub laws: LawArgs,
     #[command(flatten)]
     pub report: ReportArgs,
     #[command(flatten)]
@@ -284,6 +341,8 @@ pub fn demo(a: DemoArgs) -> Result<()> {
             sc.duration_s = s;
         }
         sc.gains.sensor_timeout_us = a.sensor_timeout_us;
+        a.laws.apply_gains(&mut sc)?;
+        a.laws.apply_compensation(&mut sc)?;
         let opts = LabOptions {
             seed: a.seed,
             faults: plan.clone(),
@@ -669,6 +728,8 @@ pub struct SuperviseArgs {
     /// A card that drives and hears no sensor frame for longer faults with SensorTimeout.
     #[arg(long)]
     pub sensor_timeout_us: Option<u32>,
+    #[command(flatten)]
+    pub laws: LawArgs,
     /// No live telemetry line.
     #[arg(long)]
     pub quiet: bool,
@@ -693,6 +754,7 @@ fn parse_mode(s: &str) -> Result<Mode> {
 /// Builds the supervisor a `supervise` command describes (also used by `run`).
 pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, Supervisor)> {
     let mut sc = Scenario::new(scenarios(&a.scenario)?[0], model)?;
+    a.laws.apply_gains(&mut sc)?;
     if let Some(m) = &a.mode {
         sc.mode = parse_mode(m)?;
     }
@@ -713,6 +775,7 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
         sc.duration_s = s;
     }
     sc.gains.sensor_timeout_us = a.sensor_timeout_us;
+    a.laws.apply_compensation(&mut sc)?;
     let entries = sc.gains.entries(&sc.scale)?;
     if let Err(e) = gains::check(&entries, sc.mode) {
         if a.force {
@@ -1142,6 +1205,11 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 force: false,
                 die_after: None,
                 sensor_timeout_us: None,
+                laws: LawArgs {
+                    gains: None,
+                    compensate: None,
+                    under: compensate::DEFAULT_UNDER,
+                },
                 quiet: true,
             },
             seed: 1,

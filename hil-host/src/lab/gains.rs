@@ -79,6 +79,38 @@ pub struct FrictionComp {
     pub under: f64,
     /// Half-width of the ramp through zero velocity, output rad/s.
     pub ramp_velocity: f64,
+    /// Cut-off of the low-pass on the velocity it acts on, Hz (0 = none): well below the
+    /// rotor's mode against the transmission (see `controller::laws::friction`).
+    pub filter_hz: f64,
+}
+
+/// Entries of the card's ripple table.
+pub const RIPPLE_ENTRIES: usize = p::RIPPLE_TABLE_LEN as usize;
+
+/// Position-periodic feed-forward through the card's ripple table: `len` corrections
+/// (output-referred N·m) spread evenly over `period_counts` motor counts from count 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RippleFf {
+    /// Motor counts per period.
+    pub period_counts: u32,
+    /// Entries used (2..=64).
+    pub len: usize,
+    /// The corrections, output N·m.
+    pub table: [f64; RIPPLE_ENTRIES],
+}
+
+/// Feed-forward of loads that depend on position alone (output-referred N·m): they are
+/// what they are at any speed, so unlike friction they are given in full.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Feedforward {
+    /// Constant torque (an offset the model measured).
+    pub offset: f64,
+    /// Gravity: `sin·sin θ + cos·cos θ`, θ the output angle from motor count 0.
+    pub gravity_sin: f64,
+    /// See `gravity_sin`.
+    pub gravity_cos: f64,
+    /// Ripple / cogging table.
+    pub ripple: Option<RippleFf>,
 }
 
 /// A gain set, output-side SI. Zero means "term off".
@@ -110,6 +142,8 @@ pub struct GainSet {
     pub quick_stop_damping: f64,
     /// Friction compensation.
     pub friction: Option<FrictionComp>,
+    /// Offset, gravity and ripple feed-forward.
+    pub feedforward: Feedforward,
     /// Supervisor watchdog timeout, ms.
     pub watchdog_ms: u32,
     /// Watchdog reaction.
@@ -140,6 +174,7 @@ impl Default for GainSet {
             velocity_limit: 20.0,
             quick_stop_damping: 0.0,
             friction: None,
+            feedforward: Feedforward::default(),
             watchdog_ms: 200,
             watchdog_reaction: WatchdogReaction::QuickStop,
             sensor_timeout_us: None,
@@ -157,6 +192,24 @@ fn si_err(e: si::SiError) -> anyhow::Error {
     };
     let name = p::lookup(param).map(|d| d.name).unwrap_or("?");
     anyhow!("gain `{name}` (param {param:#06x}) {what}")
+}
+
+/// The low-pass coefficient 1 − e^(−2πfT) of a cut-off `hz` (0 = none: 1).
+fn lowpass_fraction(hz: f64, period_s: f64) -> f64 {
+    if hz > 0.0 {
+        1.0 - (-std::f64::consts::TAU * hz * period_s).exp()
+    } else {
+        1.0
+    }
+}
+
+/// A feed-forward torque (motor N·m) in τLSB: one below half an LSB is 0, not an error (a
+/// table's entries pass through zero).
+fn ff_torque(param: u16, nm: f64) -> Result<i32, si::SiError> {
+    if nm.abs() < 0.5 * MOTOR_TORQUE_NM_PER_LSB {
+        return Ok(0);
+    }
+    si::torque(param, nm)
 }
 
 impl GainSet {
@@ -258,8 +311,47 @@ impl GainSet {
                     p::FRICTION_DEADBAND,
                     si::velocity(p::FRICTION_DEADBAND, &m, f.ramp_velocity * n).map_err(si_err)?,
                 ),
+                (
+                    p::FRICTION_FILTER,
+                    si::fraction(p::FRICTION_FILTER, lowpass_fraction(f.filter_hz, m.period_s))
+                        .map_err(si_err)?,
+                ),
             ]),
             None => e.push((p::FRICTION_ENABLE, 0)),
+        }
+        let ff = &self.feedforward;
+        e.extend([
+            (
+                p::TORQUE_OFFSET,
+                ff_torque(p::TORQUE_OFFSET, ff.offset / n).map_err(si_err)?,
+            ),
+            (
+                p::GRAVITY_SIN,
+                ff_torque(p::GRAVITY_SIN, ff.gravity_sin / n).map_err(si_err)?,
+            ),
+            (
+                p::GRAVITY_COS,
+                ff_torque(p::GRAVITY_COS, ff.gravity_cos / n).map_err(si_err)?,
+            ),
+        ]);
+        match &ff.ripple {
+            Some(r) => {
+                let period = i32::try_from(r.period_counts)
+                    .map_err(|_| anyhow!("ripple period of {} counts is too long", r.period_counts))?;
+                e.extend([
+                    (p::RIPPLE_ENABLE, 1),
+                    (p::RIPPLE_PERIOD, period),
+                    (p::RIPPLE_LENGTH, r.len as i32),
+                    (p::RIPPLE_PHASE, 0),
+                ]);
+                for (i, v) in r.table.iter().take(r.len).enumerate() {
+                    e.push((
+                        p::RIPPLE_TABLE + i as u16,
+                        ff_torque(p::RIPPLE_TABLE, v / n).map_err(si_err)?,
+                    ));
+                }
+            }
+            None => e.push((p::RIPPLE_ENABLE, 0)),
         }
         Ok(e)
     }
@@ -286,4 +378,214 @@ pub fn check(entries: &[(u16, i32)], mode: Mode) -> Result<()> {
             ),
             other => anyhow!("the card would refuse this set: {other:?}"),
         })
+}
+
+/// A gains file (`--gains FILE.toml`): any field of [`GainSet`] in the same output-side SI
+/// units, the rest kept from the scenario. Unknown keys are refused, so a misspelt gain is an
+/// error rather than a gain left at its default.
+#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GainsFile {
+    /// N·m/rad.
+    pub stiffness: Option<f64>,
+    /// N·m·s/rad.
+    pub damping: Option<f64>,
+    /// N·m/(rad·s).
+    pub integral: Option<f64>,
+    /// N·m at the motor.
+    pub integrator_limit: Option<f64>,
+    /// N·m·s/rad (output-referred).
+    pub input_damping: Option<f64>,
+    /// Motor N·m per output N·m.
+    pub force_kp: Option<f64>,
+    /// s.
+    pub force_kd: Option<f64>,
+    /// 1/s.
+    pub force_ki: Option<f64>,
+    /// 1 − Ia/Id.
+    pub km: Option<f64>,
+    /// N·m at the motor.
+    pub torque_limit: Option<f64>,
+    /// rad/s at the output.
+    pub velocity_limit: Option<f64>,
+    /// N·m·s/rad.
+    pub quick_stop_damping: Option<f64>,
+    /// Fraction of the §2.9 bound the card admits.
+    pub stability_fraction: Option<f64>,
+    /// `[friction]`: friction compensation.
+    pub friction: Option<FrictionFile>,
+    /// `[feedforward]`: offset, gravity, ripple table.
+    pub feedforward: Option<FeedforwardFile>,
+}
+
+/// `[friction]` of a gains file (output side).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionFile {
+    /// N·m.
+    pub coulomb_pos: f64,
+    /// N·m (magnitude).
+    pub coulomb_neg: f64,
+    /// N·m·s/rad.
+    #[serde(default)]
+    pub viscous: f64,
+    /// Under-compensation factor.
+    #[serde(default = "default_under")]
+    pub under: f64,
+    /// Half-width of the ramp through zero, output rad/s.
+    pub ramp_velocity: f64,
+    /// Cut-off of the velocity low-pass, Hz (0 = none).
+    #[serde(default)]
+    pub filter_hz: f64,
+}
+
+fn default_under() -> f64 {
+    0.8
+}
+
+/// `[feedforward]` of a gains file (output N·m).
+#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FeedforwardFile {
+    /// Constant.
+    #[serde(default)]
+    pub offset: f64,
+    /// × sin of the output angle.
+    #[serde(default)]
+    pub gravity_sin: f64,
+    /// × cos of the output angle.
+    #[serde(default)]
+    pub gravity_cos: f64,
+    /// `[feedforward.ripple]`.
+    pub ripple: Option<RippleFile>,
+}
+
+/// `[feedforward.ripple]`: 2..=64 corrections (output N·m) over `period_counts` motor counts.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RippleFile {
+    /// Motor counts per period.
+    pub period_counts: u32,
+    /// The corrections.
+    pub table: Vec<f64>,
+}
+
+impl GainsFile {
+    /// Reads and checks `path`.
+    pub fn load(path: &std::path::Path) -> Result<GainsFile> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| anyhow!("cannot read the gains file {}: {e}", path.display()))?;
+        let g: GainsFile =
+            toml::from_str(&text).map_err(|e| anyhow!("gains file {}: {e}", path.display()))?;
+        g.check()
+            .map_err(|e| anyhow!("gains file {}: {e}", path.display()))?;
+        Ok(g)
+    }
+
+    fn check(&self) -> Result<()> {
+        let mut all = vec![
+            ("stiffness", self.stiffness),
+            ("damping", self.damping),
+            ("integral", self.integral),
+            ("integrator_limit", self.integrator_limit),
+            ("input_damping", self.input_damping),
+            ("force_kp", self.force_kp),
+            ("force_kd", self.force_kd),
+            ("force_ki", self.force_ki),
+            ("km", self.km),
+            ("torque_limit", self.torque_limit),
+            ("velocity_limit", self.velocity_limit),
+            ("quick_stop_damping", self.quick_stop_damping),
+            ("stability_fraction", self.stability_fraction),
+        ];
+        if let Some(f) = &self.friction {
+            all.extend([
+                ("friction.coulomb_pos", Some(f.coulomb_pos)),
+                ("friction.coulomb_neg", Some(f.coulomb_neg)),
+                ("friction.viscous", Some(f.viscous)),
+                ("friction.ramp_velocity", Some(f.ramp_velocity)),
+                ("friction.filter_hz", Some(f.filter_hz)),
+            ]);
+            if !(f.under > 0.0 && f.under <= 1.0) {
+                return Err(anyhow!("friction.under must be in (0, 1], got {}", f.under));
+            }
+        }
+        for (name, v) in all {
+            match v {
+                Some(x) if !x.is_finite() => return Err(anyhow!("`{name}` is not a number")),
+                Some(x) if x < 0.0 && name != "km" => {
+                    return Err(anyhow!("`{name}` = {x} must not be negative"))
+                }
+                _ => {}
+            }
+        }
+        if let Some(r) = self.feedforward.as_ref().and_then(|f| f.ripple.as_ref()) {
+            if !(2..=RIPPLE_ENTRIES).contains(&r.table.len()) {
+                return Err(anyhow!(
+                    "feedforward.ripple.table has {} entries; the card takes 2 to {RIPPLE_ENTRIES}",
+                    r.table.len()
+                ));
+            }
+            if (r.period_counts as usize) < r.table.len() {
+                return Err(anyhow!(
+                    "feedforward.ripple.period_counts {} is shorter than its table",
+                    r.period_counts
+                ));
+            }
+            if r.table.iter().any(|v| !v.is_finite()) {
+                return Err(anyhow!("feedforward.ripple.table holds a value that is not a number"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Overlays the file on `g`.
+    pub fn apply(&self, g: &mut GainSet) {
+        let set = |dst: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *dst = v;
+            }
+        };
+        set(&mut g.stiffness, self.stiffness);
+        set(&mut g.damping, self.damping);
+        set(&mut g.integral, self.integral);
+        set(&mut g.integrator_limit, self.integrator_limit);
+        set(&mut g.input_damping, self.input_damping);
+        set(&mut g.force_kp, self.force_kp);
+        set(&mut g.force_kd, self.force_kd);
+        set(&mut g.force_ki, self.force_ki);
+        set(&mut g.km, self.km);
+        set(&mut g.torque_limit, self.torque_limit);
+        set(&mut g.velocity_limit, self.velocity_limit);
+        set(&mut g.quick_stop_damping, self.quick_stop_damping);
+        set(&mut g.stability_fraction, self.stability_fraction);
+        if let Some(f) = self.friction {
+            g.friction = Some(FrictionComp {
+                coulomb_pos: f.coulomb_pos,
+                coulomb_neg: f.coulomb_neg,
+                viscous: f.viscous,
+                under: f.under,
+                ramp_velocity: f.ramp_velocity,
+                filter_hz: f.filter_hz,
+            });
+        }
+        if let Some(ff) = &self.feedforward {
+            g.feedforward = Feedforward {
+                offset: ff.offset,
+                gravity_sin: ff.gravity_sin,
+                gravity_cos: ff.gravity_cos,
+                ripple: ff.ripple.as_ref().map(|r| {
+                    let mut table = [0.0; RIPPLE_ENTRIES];
+                    for (d, s) in table.iter_mut().zip(&r.table) {
+                        *d = *s;
+                    }
+                    RippleFf {
+                        period_counts: r.period_counts,
+                        len: r.table.len(),
+                        table,
+                    }
+                }),
+            };
+        }
+    }
 }
