@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
 use crate::lab::card_node::CardNode;
+use crate::lab::close_loop;
 use crate::lab::compensate::{self, Compensation};
 use crate::lab::gains::{self, GainsFile};
 use crate::lab::inject::{FaultPlan, Injection, Node, Window};
@@ -200,7 +201,8 @@ fn bar(len: u64, quiet: bool) -> ProgressBar {
 #[derive(Debug, Clone, Args)]
 pub struct LawArgs {
     /// Gains in output-side SI from a TOML file: stiffness, damping, integral, input_damping,
-    /// force_kp/kd/ki, km, limits, `[friction]`, `[feedforward]` (see docs/lab.md).
+    /// force_kp/kd/ki, km, limits, `[friction]`, `[feedforward]` (see the README, "Close the
+    /// loop").
     #[arg(long, value_name = "FILE.toml")]
     pub gains: Option<PathBuf>,
     /// Compensate what a model file (from `diagnose --auto` or `fit`) measured: friction,
@@ -209,7 +211,7 @@ pub struct LawArgs {
     #[arg(long, value_name = "MODEL.toml")]
     pub compensate: Option<PathBuf>,
     /// Under-compensation of friction (thesis: "slightly below" the measured friction).
-    #[arg(long, default_value_t = compensate::DEFAULT_UNDER, requires = "compensate")]
+    #[arg(long, default_value_t = compensate::DEFAULT_UNDER)]
     pub under: f64,
 }
 
@@ -304,7 +306,7 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
         .ok_or_else(|| {
             let names: Vec<_> = ScenarioKind::ALL.iter().map(|k| k.name()).collect();
             anyhow!(
-                "unknown scenario `{spec}`; one of: {}, all",
+                "unknown scenario `{spec}`; one of: {}, compensate, all",
                 names.join(", ")
             )
         })
@@ -323,6 +325,9 @@ fn check_seconds(s: Option<f64>) -> Result<()> {
 /// worst verdict's.
 pub fn demo(a: DemoArgs) -> Result<()> {
     let model = a.plant.load()?;
+    if a.scenario == "compensate" {
+        return compensate_demo(&a, &model);
+    }
     a.report.check()?;
     check_seconds(a.seconds)?;
     let plan = FaultPlan::parse(&a.inject)?;
@@ -427,6 +432,73 @@ pub fn demo(a: DemoArgs) -> Result<()> {
         }
     }
     verdicts(&reports)
+}
+
+/// `demo --scenario compensate`: identify, diagnose, compensate, and the tasks without and
+/// with. Fails (exit 1) when the compensation made tracking worse.
+fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
+    let under = a.laws.under;
+    let label = a.plant.label();
+    let quiet = a.quiet || a.report.json;
+    let o = close_loop::run_all(model, &label, a.seed, under, &a.out, |what| {
+        if !quiet {
+            eprintln!("compensate: {what}");
+        }
+    })?;
+    if a.report.json {
+        let fig = |f: &close_loop::Figures| {
+            serde_json::json!({
+                "tracking_rms_rad": f.tracking_rms,
+                "peak_error_rad": f.peak_error,
+                "steady_state_rad": f.steady_state,
+                "limit_cycle_counts": f.limit_cycle_counts,
+                "loop_area_J": f.loop_area,
+            })
+        };
+        println!(
+            "{}",
+            serde_json::json!({
+                "schema_version": 1,
+                "preset": label,
+                "added": o.added,
+                "model": o.model_file.display().to_string(),
+                "applied": o.compensation.applied,
+                "left_out": o.compensation.left_out,
+                "before": fig(&o.before),
+                "after": fig(&o.after),
+                "files": o.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            })
+        );
+    } else {
+        println!(
+            "\ncompensate on {label} — identify, diagnose --auto ({}), compensate (under {under}), seed {}",
+            if o.added.is_empty() { "nothing added".to_string() } else { o.added.join(" → ") },
+            a.seed
+        );
+        for l in &o.compensation.applied {
+            println!("  on the card: {l}");
+        }
+        for l in &o.compensation.left_out {
+            println!("  not compensated: {l}");
+        }
+        print!("{}", o.table());
+        for f in &o.files {
+            println!("  wrote {}", f.display());
+        }
+    }
+    if o.after.tracking_rms > o.before.tracking_rms {
+        return Err(RunFailed {
+            verdict: Verdict::Incomplete,
+            headline: format!(
+                "the compensation made tracking worse ({} → {} rad RMS): the model does not \
+                 describe this joint",
+                jointlab_workbench::units::eng(o.before.tracking_rms),
+                jointlab_workbench::units::eng(o.after.tracking_rms)
+            ),
+        }
+        .into());
+    }
+    Ok(())
 }
 
 /// Options shared by the nodes on a real bus.

@@ -58,7 +58,9 @@ impl Compensation {
     /// above the motor's torque).
     pub fn from_model(model: &Model, joint: &JointScale, under: f64) -> Result<Compensation> {
         if !(under > 0.0 && under <= 1.0) {
-            bail!("--under must be in (0, 1] (the thesis's \"slightly below\" is 0.8), got {under}");
+            bail!(
+                "--under must be in (0, 1] (the thesis's \"slightly below\" is 0.8), got {under}"
+            );
         }
         let nm = model.plant.gear_ratio.value;
         if !(nm.is_finite() && nm > 0.0) {
@@ -77,8 +79,8 @@ impl Compensation {
         let (c_extra, b_extra) = fx.asymmetry.as_ref().map_or((0.0, 0.0), |a| {
             (a.coulomb_extra.value, a.viscous_extra.value)
         });
-        let viscous_model = fx.viscous.as_ref().map_or(0.0, |v| v.damping.value)
-            + model.plant.output_damping.value;
+        let viscous_model =
+            fx.viscous.as_ref().map_or(0.0, |v| v.damping.value) + model.plant.output_damping.value;
         // motor N·m·s/rad: the output's damping seen through the ratio twice, the motor's as is
         let viscous_motor = viscous_model / (nm * nm) + model.motor.damping.value;
         let (cpos, cneg) = (motor_torque(coulomb + c_extra), motor_torque(coulomb));
@@ -86,12 +88,17 @@ impl Compensation {
         let viscous_motor = viscous_motor + 0.5 * b_extra / (nm * nm);
         let friction = if cpos != 0.0 || cneg != 0.0 || viscous_motor != 0.0 {
             if cpos < 0.0 || cneg < 0.0 || viscous_motor < 0.0 {
-                bail!(
-                    "the model's friction is negative in one direction (Coulomb {cpos:.4} / \
-                     {cneg:.4} N·m, viscous {viscous_motor:.3e} N·m·s/rad at the motor): a \
-                     compensation of it would push the joint"
-                );
+                left_out.push(format!(
+                    "friction below zero (Coulomb +{} / −{} N·m, viscous {} N·m·s/rad at the \
+                     motor): a fit's artefact, not a friction; the card compensates only what is \
+                     above zero",
+                    fmt(cpos),
+                    fmt(cneg),
+                    fmt(viscous_motor)
+                ));
             }
+            let (cpos, cneg, viscous_motor) =
+                (cpos.max(0.0), cneg.max(0.0), viscous_motor.max(0.0));
             applied.push(format!(
                 "friction: Coulomb +{} / −{} N·m, viscous {} N·m·s/rad (motor side), × {under} \
                  (under-compensation)",
@@ -122,7 +129,11 @@ impl Compensation {
 
         // --- position-dependent loads ---
         let mut ff = Feedforward {
-            offset: fx.offset.as_ref().map_or(0.0, |o| motor_torque(o.torque.value)) * nj,
+            offset: fx
+                .offset
+                .as_ref()
+                .map_or(0.0, |o| motor_torque(o.torque.value))
+                * nj,
             ..Feedforward::default()
         };
         if ff.offset != 0.0 {
@@ -366,7 +377,11 @@ mod tests {
         let c = Compensation::from_model(&m, &joint(&m), 0.8).unwrap();
         let f = c.friction.unwrap();
         let truth = m.effects.coulomb.as_ref().unwrap().torque.value;
-        let extra = m.effects.asymmetry.as_ref().map_or(0.0, |a| a.coulomb_extra.value);
+        let extra = m
+            .effects
+            .asymmetry
+            .as_ref()
+            .map_or(0.0, |a| a.coulomb_extra.value);
         assert!((f.coulomb_neg - truth).abs() < 1e-9 * truth);
         assert!((f.coulomb_pos - truth - extra).abs() < 1e-9 * truth);
         let r = c.feedforward.ripple.unwrap();
@@ -387,13 +402,18 @@ mod tests {
     }
 
     #[test]
-    fn bad_under_and_negative_friction_are_refused() {
+    fn bad_under_is_refused_and_negative_friction_left_out() {
         let mut m = presets::preset("harmonic-drive-60").unwrap();
         let j = joint(&m);
         assert!(Compensation::from_model(&m, &j, 1.2).is_err());
         assert!(Compensation::from_model(&m, &j, f64::NAN).is_err());
+        // A fit that went below zero in one direction: that direction is not compensated.
         m.effects.asymmetry.as_mut().unwrap().coulomb_extra.value = -1e3;
-        let e = Compensation::from_model(&m, &j, 0.8).unwrap_err();
-        assert!(e.to_string().contains("negative"), "{e}");
+        let c = Compensation::from_model(&m, &j, 0.8).unwrap();
+        assert_eq!(c.friction.unwrap().coulomb_pos, 0.0);
+        assert!(c
+            .left_out
+            .iter()
+            .any(|l| l.starts_with("friction below zero")));
     }
 }

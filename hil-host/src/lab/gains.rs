@@ -313,8 +313,11 @@ impl GainSet {
                 ),
                 (
                     p::FRICTION_FILTER,
-                    si::fraction(p::FRICTION_FILTER, lowpass_fraction(f.filter_hz, m.period_s))
-                        .map_err(si_err)?,
+                    si::fraction(
+                        p::FRICTION_FILTER,
+                        lowpass_fraction(f.filter_hz, m.period_s),
+                    )
+                    .map_err(si_err)?,
                 ),
             ]),
             None => e.push((p::FRICTION_ENABLE, 0)),
@@ -336,8 +339,9 @@ impl GainSet {
         ]);
         match &ff.ripple {
             Some(r) => {
-                let period = i32::try_from(r.period_counts)
-                    .map_err(|_| anyhow!("ripple period of {} counts is too long", r.period_counts))?;
+                let period = i32::try_from(r.period_counts).map_err(|_| {
+                    anyhow!("ripple period of {} counts is too long", r.period_counts)
+                })?;
                 e.extend([
                     (p::RIPPLE_ENABLE, 1),
                     (p::RIPPLE_PERIOD, period),
@@ -533,7 +537,9 @@ impl GainsFile {
                 ));
             }
             if r.table.iter().any(|v| !v.is_finite()) {
-                return Err(anyhow!("feedforward.ripple.table holds a value that is not a number"));
+                return Err(anyhow!(
+                    "feedforward.ripple.table holds a value that is not a number"
+                ));
             }
         }
         Ok(())

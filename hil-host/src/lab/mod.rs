@@ -20,6 +20,7 @@
 //! whose figures are computed from the recording on disk ([`recorder`], [`summary`]).
 
 pub mod card_node;
+pub mod close_loop;
 pub mod compensate;
 pub mod gains;
 pub mod inject;

@@ -223,3 +223,47 @@ pub fn html_report(
     )?;
     Ok(path)
 }
+
+/// Tracking error over time, without and with compensation, on one chart.
+pub fn plot_before_after(path: &Path, title: &str, before: &[Row], after: &[Row]) -> Result<()> {
+    let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
+    let t1 = before
+        .iter()
+        .chain(after)
+        .map(|r| r.time_s)
+        .fold(1e-3, f64::max);
+    let (lo, hi) = range(before.iter().chain(after).map(err));
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..t1, lo..hi)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("tracking error (output rad)")
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    for (name, rows, color) in [("without", before, RED), ("with compensation", after, BLUE)] {
+        chart
+            .draw_series(LineSeries::new(
+                rows.iter().map(|r| (r.time_s, err(r))),
+                color,
+            ))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}

@@ -1,0 +1,267 @@
+//! `demo --scenario compensate`: the workbench's finding compensated on the card, and the
+//! tracking error measured without and with it. Identify (a chirp under colocated PD) →
+//! `diagnose --auto` on the recording → [`Compensation`] → the same tasks twice.
+//!
+//! The tasks and their figures are the thesis's (§5): a position trajectory (tracking RMS and
+//! peak error), a step held at its end (steady-state error and the limit cycle's peak-to-peak
+//! in motor encoder counts) and a stiffness-emulation crank cycle (loop area, the work lost
+//! per cycle).
+
+use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use jointlab_workbench::data::{self, Columns};
+use jointlab_workbench::diagnose::Options;
+use jointlab_workbench::model::Model as WbModel;
+use jointlab_workbench::refine;
+use jointlab_workbench::residual::Prepared;
+use sim_plant::Model;
+
+use super::compensate::Compensation;
+use super::recorder::{read_rows, Row};
+use super::scenario::{Scenario, ScenarioKind, SETTLE_S};
+use super::trajectory::Trajectory;
+use super::{Lab, LabOptions};
+
+/// The figures of one set of tasks.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Figures {
+    /// Tracking error RMS over the trajectory, output rad.
+    pub tracking_rms: f64,
+    /// Largest tracking error, output rad.
+    pub peak_error: f64,
+    /// Mean error over the last 0.5 s of the held step, output rad.
+    pub steady_state: f64,
+    /// Peak-to-peak of the motor encoder over the last 0.5 s of the held step, counts.
+    pub limit_cycle_counts: f64,
+    /// Work lost per stiffness-emulation cycle, J.
+    pub loop_area: f64,
+}
+
+/// What the scenario did, for the table and the tests.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// Without compensation.
+    pub before: Figures,
+    /// With it.
+    pub after: Figures,
+    /// The compensation applied.
+    pub compensation: Compensation,
+    /// The model `diagnose --auto` wrote.
+    pub model_file: PathBuf,
+    /// Effects `--auto` added, in order.
+    pub added: Vec<String>,
+    /// Every file written.
+    pub files: Vec<PathBuf>,
+}
+
+impl Outcome {
+    /// The before/after table.
+    pub fn table(&self) -> String {
+        let b = &self.before;
+        let a = &self.after;
+        let rows: [(&str, f64, f64, &str); 5] = [
+            (
+                "tracking error RMS",
+                b.tracking_rms,
+                a.tracking_rms,
+                "rad (output)",
+            ),
+            (
+                "peak tracking error",
+                b.peak_error,
+                a.peak_error,
+                "rad (output)",
+            ),
+            (
+                "steady-state error",
+                b.steady_state,
+                a.steady_state,
+                "rad (output)",
+            ),
+            (
+                "limit cycle p-p",
+                b.limit_cycle_counts,
+                a.limit_cycle_counts,
+                "counts (motor)",
+            ),
+            ("stiffness loop area", b.loop_area, a.loop_area, "J"),
+        ];
+        let mut s = format!(
+            "  {:<24} {:>12} {:>12} {:>9}\n",
+            "", "before", "after", "change"
+        );
+        for (name, x, y, unit) in rows {
+            let change = if x.abs() > 0.0 {
+                format!("{:+.0} %", 100.0 * (y - x) / x.abs())
+            } else {
+                String::new()
+            };
+            s += &format!(
+                "  {name:<24} {:>12} {:>12} {change:>9}  {unit}\n",
+                jointlab_workbench::units::eng(x),
+                jointlab_workbench::units::eng(y)
+            );
+        }
+        s
+    }
+}
+
+/// Seconds of the tracking trajectory's motion.
+const TRACK_S: f64 = 10.0;
+
+/// The tracking trajectory: one period of a slow sine (0.1 Hz, 0.2 rad: the speeds of the
+/// thesis's stiffness tests, where friction, not inertia, makes the error), then a hold.
+fn tracking() -> Trajectory {
+    let mut v: Vec<(f64, f64)> = (0..=2000)
+        .map(|k| {
+            let t = k as f64 * 0.005;
+            (t, 0.2 * (TAU * t / TRACK_S).sin())
+        })
+        .collect();
+    v.push((TRACK_S + 1.0, 0.0));
+    Trajectory::Samples(v)
+}
+
+/// Runs `sc` on `model` to the end, writing its recording to `csv`; returns the rows.
+fn run(model: &Model, sc: Scenario, seed: u64, csv: &Path) -> Result<(Vec<Row>, Lab)> {
+    let opts = LabOptions {
+        seed,
+        ..LabOptions::default()
+    };
+    let mut lab = Lab::new(model, sc, &opts)?;
+    lab.recorder.write_csv(csv)?;
+    lab.run(|_, _| {})?;
+    let rows = read_rows(csv)?.collect::<Result<Vec<Row>>>()?;
+    Ok((rows, lab))
+}
+
+/// The tasks with `comp` on the card (None: without).
+fn tasks(
+    model: &Model,
+    comp: Option<&Compensation>,
+    seed: u64,
+    out: &Path,
+    tag: &str,
+    files: &mut Vec<PathBuf>,
+) -> Result<(Figures, Vec<Row>)> {
+    let with = |mut sc: Scenario| {
+        if let Some(c) = comp {
+            let mut c = c.clone();
+            c.within_damping(&sc.gains);
+            sc.gains.friction = c.friction;
+            sc.gains.feedforward = c.feedforward;
+        }
+        sc
+    };
+    let mut f = Figures::default();
+    // Tracking at the thesis's medium stiffness, where friction shows.
+    let mut sc = Scenario::new(ScenarioKind::Identify, model)?;
+    sc.trajectory = tracking();
+    sc.duration_s = TRACK_S + 1.0;
+    let csv = out.join(format!("track-{tag}.csv"));
+    let (track, _) = run(model, with(sc), seed, &csv).context("the tracking task")?;
+    files.push(csv);
+    let moving: Vec<&Row> = track
+        .iter()
+        .filter(|r| r.time_s > SETTLE_S + 0.05 && r.time_s < SETTLE_S + TRACK_S)
+        .collect();
+    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
+    f.tracking_rms =
+        (moving.iter().map(|r| err(r).powi(2)).sum::<f64>() / moving.len().max(1) as f64).sqrt();
+    f.peak_error = moving.iter().map(|r| err(r).abs()).fold(0.0, f64::max);
+    // A step held at its end: steady-state error and the limit cycle.
+    let sc = Scenario::new(ScenarioKind::Step, model)?;
+    let cpr = sc.scale.motor_cpr();
+    let end = SETTLE_S + sc.duration_s;
+    let csv = out.join(format!("step-{tag}.csv"));
+    let (rows, _) = run(model, with(sc), seed, &csv).context("the step")?;
+    files.push(csv);
+    let held: Vec<&Row> = rows.iter().filter(|r| r.time_s > end - 0.5).collect();
+    f.steady_state = held.iter().map(|r| err(r)).sum::<f64>() / held.len().max(1) as f64;
+    let counts = |r: &&Row| (r.motor_pos_rad / TAU * cpr).round();
+    let (lo, hi) = held
+        .iter()
+        .map(counts)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
+            (a.min(c), b.max(c))
+        });
+    f.limit_cycle_counts = if held.is_empty() { 0.0 } else { hi - lo };
+    // Stiffness emulation against the crank.
+    let sc = Scenario::new(ScenarioKind::Stiffness, model)?;
+    let csv = out.join(format!("stiffness-{tag}.csv"));
+    let (_, mut lab) = run(model, with(sc), seed, &csv).context("the stiffness cycle")?;
+    files.push(csv);
+    f.loop_area = lab
+        .summary()?
+        .get("loop area (work lost)")
+        .unwrap_or(f64::NAN);
+    Ok((f, track))
+}
+
+/// Identify, diagnose, compensate, compare. `out` receives the recordings, the model and
+/// the plot.
+pub fn run_all(
+    model: &Model,
+    label: &str,
+    seed: u64,
+    under: f64,
+    out: &Path,
+    mut progress: impl FnMut(&str),
+) -> Result<Outcome> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut files = vec![];
+    // 1. identify
+    progress("identify: a chirp under colocated PD");
+    let mut sc = Scenario::new(ScenarioKind::Identify, model)?;
+    // The thesis's "high" stiffness (as the step's): the joint must move through its
+    // friction for the record to show it, and at the medium stiffness a 60:1 cycloid's
+    // 19 N·m of friction holds it still.
+    let step = Scenario::new(ScenarioKind::Step, model)?;
+    sc.gains.stiffness = step.gains.stiffness;
+    sc.gains.damping = step.gains.damping;
+    let csv = out.join(format!("identify-{label}.csv"));
+    let scale = sc.scale;
+    run(model, sc, seed, &csv).context("the identification run")?;
+    files.push(csv.clone());
+    // 2. diagnose --auto
+    progress("diagnose --auto: which effects the recording needs");
+    let rec = data::load(&csv, &Columns::new("torque_cmd_Nm", "motor_pos_rad"))?;
+    let p = Prepared::checked(&rec, None).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mut wb = WbModel::baseline();
+    wb.on_axis(p.axis, &p.input_unit)?;
+    let run_auto = refine::auto(&mut wb, &p, None, &Options::default(), 6)?;
+    let added = run_auto
+        .steps
+        .iter()
+        .filter_map(|s| s.added.clone())
+        .collect();
+    let model_file = out.join(format!("model-{label}.toml"));
+    wb.save(&model_file)?;
+    files.push(model_file.clone());
+    // 3. compensate
+    let compensation = Compensation::from_model(&wb.to_sim(), &scale, under)
+        .with_context(|| format!("compensating {}", model_file.display()))?;
+    // 4. the tasks, without and with
+    progress("tasks without compensation");
+    let (before, rows_b) = tasks(model, None, seed, out, "before", &mut files)?;
+    progress("tasks with compensation");
+    let (after, rows_a) = tasks(model, Some(&compensation), seed, out, "after", &mut files)?;
+    let png = out.join(format!("compensate-{label}.png"));
+    super::plot::plot_before_after(
+        &png,
+        &format!("tracking on {label}: without and with compensation"),
+        &rows_b,
+        &rows_a,
+    )?;
+    files.push(png);
+    Ok(Outcome {
+        before,
+        after,
+        compensation,
+        model_file,
+        added,
+        files,
+    })
+}
