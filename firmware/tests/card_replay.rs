@@ -97,6 +97,7 @@ fn record() -> Recording {
             under: 0.8,
             ramp_velocity: 0.2,
             filter_hz: 0.0,
+            on_setpoint: false,
         }),
         ..pid
     };

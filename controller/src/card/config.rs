@@ -89,6 +89,9 @@ pub struct CardConfig {
     pub standstill_velocity: i64,
     /// Gain that turns the velocity feed-forward (1/16 count/s) into torque (= Be).
     pub velocity_ff_gain: Gain,
+    /// Friction compensation on the setpoint's velocity feed-forward (`friction_source` 1),
+    /// added with it; the joint law's own is then off.
+    pub reference_friction: Option<FrictionConfig>,
     /// Supervisor watchdog timeout, µs.
     pub supervisor_timeout_us: u64,
     /// What to do when it fires.
@@ -147,8 +150,9 @@ pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     let per_tick = |raw: i32| q16(raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
     // A viscous friction feed-forward is +u·Bv·ẋ1: negative damping on the rotor, which the
     // input damping B1e offsets first and the law's Be after it (the friction it cancels acts
-    // beyond the transmission, where the rotor's fast mode does not feel it).
-    let negative = if s.raw(p::FRICTION_ENABLE) != 0 {
+    // beyond the transmission, where the rotor's fast mode does not feel it). On the
+    // setpoint's velocity it is no feedback at all.
+    let negative = if s.raw(p::FRICTION_ENABLE) != 0 && s.raw(p::FRICTION_SOURCE) == 0 {
         let u = f64::from(s.raw(p::UNDER_COMPENSATION)) / 65536.0;
         (u * per_tick(s.raw(p::VISCOUS_POS)) - per_tick(s.raw(p::B1E))).max(0.0)
     } else {
@@ -277,7 +281,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         }
     };
 
-    let friction = if s.raw(p::FRICTION_ENABLE) != 0 {
+    let friction_law = if s.raw(p::FRICTION_ENABLE) != 0 {
         // Transition: a linear ramp through zero velocity of half-width `FRICTION_DEADBAND`
         // (see laws::friction) — τc/ω_r as the slope.
         let w = f64::from(s.raw(p::FRICTION_DEADBAND).max(1)) * 16.0;
@@ -293,6 +297,15 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         })
     } else {
         None
+    };
+
+    // On the setpoint's velocity (the card adds it with the other feed-forward) or on the
+    // measured one (the joint law adds it).
+    let on_setpoint = s.raw(p::FRICTION_SOURCE) == 1;
+    let (friction, reference_friction) = if on_setpoint {
+        (None, friction_law)
+    } else {
+        (friction_law, None)
     };
 
     let imp_comp = if s.raw(p::IMPEDANCE_COMP_ENABLE) != 0 {
@@ -395,6 +408,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         quick_stop_damping: per_rate(p::QUICK_STOP_DAMPING)?,
         standstill_velocity: counts_per_s_to_law(s.raw(p::STANDSTILL_VELOCITY)),
         velocity_ff_gain: be,
+        reference_friction,
         supervisor_timeout_us: ms_to_us(s.raw(p::SUPERVISOR_TIMEOUT)),
         watchdog_reaction: WatchdogReaction::from_u8(
             u8::try_from(s.raw(p::WATCHDOG_REACTION)).unwrap_or(0),

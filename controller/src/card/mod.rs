@@ -35,7 +35,7 @@ pub mod store;
 use embedded_can::Frame;
 
 use crate::fixed_math::{clamp_sym, Counts, Flags, Torque, Vel};
-use crate::laws::{JointState, Measurements, PositionLaw, Setpoint};
+use crate::laws::{FrictionComp, JointState, Measurements, PositionLaw, Setpoint};
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::{
     self, Actuator, ControlWord, Fault, FaultCode, Heartbeat, LimitFlags, Message, Mode, NodeId,
@@ -103,6 +103,7 @@ pub struct Card {
     pending: Option<Pending>,
     cfg: CardConfig,
     joint: JointState,
+    ref_friction: FrictionComp,
     motor: Unwrapper,
     observer: TrackingObserver,
     output: Unwrapper,
@@ -219,6 +220,7 @@ impl Card {
             pending: None,
             cfg,
             joint: JointState::new(),
+            ref_friction: FrictionComp::NEW,
             motor: Unwrapper::new(),
             observer: TrackingObserver::new(),
             output: Unwrapper::new(),
@@ -932,8 +934,19 @@ impl Card {
                         | Mode::PositionPid
                         | Mode::ImpedanceColocated
                         | Mode::ImpedanceNonColocated,
-                    ) => i64::from(self.torque_ff)
-                        .saturating_add(self.cfg.velocity_ff_gain.apply(vff.to_bits())),
+                    ) => {
+                        let friction = match &self.cfg.reference_friction {
+                            Some(f) => {
+                                let o = self.ref_friction.step(f, vff);
+                                flags |= o.flags;
+                                i64::from(o.tau)
+                            }
+                            None => 0,
+                        };
+                        i64::from(self.torque_ff)
+                            .saturating_add(self.cfg.velocity_ff_gain.apply(vff.to_bits()))
+                            .saturating_add(friction)
+                    }
                     _ => 0,
                 };
                 i64::from(out.out.tau).saturating_add(ff)

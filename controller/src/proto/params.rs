@@ -181,6 +181,7 @@ params! {
     FRICTION_DEADBAND = 0x0406, "friction_deadband", Any, "counts/s", 0, MAX, 1_000;
     FRICTION_SAME_SIGN_TICKS = 0x0407, "friction_same_sign_ticks", Any, "ticks", 1, 1_000, 3;
     FRICTION_FILTER = 0x0408, "friction_filter", Any, "Q0.16 low-pass α of the velocity it acts on (65536 = none)", 1, 65536, 65536;
+    FRICTION_SOURCE = 0x0409, "friction_source", Any, "0 = the measured velocity, 1 = the setpoint's velocity_ff", 0, 1, 0;
     // --- 0x05xx impedance compensation ---
     IMPEDANCE_COMP_ENABLE = 0x0500, "impedance_comp_enable", Any, "bool (0/1)", 0, 1, 0;
     IMPEDANCE_COMP_STIFFNESS = 0x0501, "impedance_comp_stiffness", Any, "Q16.16 τoLSB per count", 0, MAX, 0;

@@ -856,7 +856,7 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
             return Err(e);
         }
     }
-    let sup = Supervisor::new(
+    let mut sup = Supervisor::new(
         node(a.bus.node)?,
         sc.scale,
         entries,
@@ -866,6 +866,7 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
         sc.rate_hz,
         Some(sc.streaming_s()),
     );
+    sup.set_velocity_ff(sc.velocity_ff);
     Ok((sc, sup))
 }
 

@@ -122,6 +122,7 @@ impl Compensation {
                 under,
                 ramp_velocity: ramp_motor / nj,
                 filter_hz: FRICTION_FILTER_HZ,
+                on_setpoint: false,
             })
         } else {
             None

@@ -82,6 +82,9 @@ pub struct FrictionComp {
     /// Cut-off of the low-pass on the velocity it acts on, Hz (0 = none): well below the
     /// rotor's mode against the transmission (see `controller::laws::friction`).
     pub filter_hz: f64,
+    /// Act on the setpoint's velocity (a feed-forward on the reference: the supervisor must
+    /// send it) instead of the measured one.
+    pub on_setpoint: bool,
 }
 
 /// Entries of the card's ripple table.
@@ -311,6 +314,7 @@ impl GainSet {
                     p::FRICTION_DEADBAND,
                     si::velocity(p::FRICTION_DEADBAND, &m, f.ramp_velocity * n).map_err(si_err)?,
                 ),
+                (p::FRICTION_SOURCE, i32::from(f.on_setpoint)),
                 (
                     p::FRICTION_FILTER,
                     si::fraction(
@@ -441,6 +445,9 @@ pub struct FrictionFile {
     /// Cut-off of the velocity low-pass, Hz (0 = none).
     #[serde(default)]
     pub filter_hz: f64,
+    /// Act on the setpoint's velocity (the supervisor's reference) instead of the measured.
+    #[serde(default)]
+    pub on_setpoint: bool,
 }
 
 fn default_under() -> f64 {
@@ -573,6 +580,7 @@ impl GainsFile {
                 under: f.under,
                 ramp_velocity: f.ramp_velocity,
                 filter_hz: f.filter_hz,
+                on_setpoint: f.on_setpoint,
             });
         }
         if let Some(ff) = &self.feedforward {

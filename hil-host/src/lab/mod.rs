@@ -156,6 +156,7 @@ impl Lab {
             scenario.rate_hz,
             Some(scenario.streaming_s()),
         );
+        supervisor.set_velocity_ff(scenario.velocity_ff);
         supervisor.set_silent_windows(
             opts.faults
                 .items

@@ -77,6 +77,9 @@ pub struct Scenario {
     crank_period: f64,
     wall: Option<Environment>,
     tap_torque: f64,
+    /// The supervisor sends the trajectory's velocity with each setpoint (the card's velocity
+    /// feed-forward).
+    pub velocity_ff: bool,
 }
 
 /// Joint constants of a model (what the supervisor must know).
@@ -154,6 +157,7 @@ impl Scenario {
                     crank_period: 4.0,
                     wall: None,
                     tap_torque: 0.0,
+                    velocity_ff: false,
                 }
             }
             ScenarioKind::Damper => {
@@ -175,6 +179,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    velocity_ff: false,
                 }
             }
             ScenarioKind::Step => {
@@ -203,6 +208,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    velocity_ff: false,
                 }
             }
             ScenarioKind::Wall => Scenario {
@@ -232,6 +238,7 @@ impl Scenario {
                     rest: 0.0,
                 }),
                 tap_torque: 0.0,
+                velocity_ff: false,
             },
             ScenarioKind::Identify => {
                 // The "medium" stiffness: tight enough to follow the chirp, soft enough that
@@ -259,6 +266,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    velocity_ff: false,
                 }
             }
             ScenarioKind::Backlash => {
@@ -298,6 +306,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 1.5 * model.motor.max_torque.value * n,
+                    velocity_ff: false,
                 }
             }
         };

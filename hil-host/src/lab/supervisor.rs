@@ -155,6 +155,7 @@ pub struct Supervisor {
     last_command: u64,
     heartbeats: u64,
     acted_on: u64,
+    velocity_ff: bool,
 }
 
 impl Supervisor {
@@ -202,7 +203,14 @@ impl Supervisor {
             last_command: 0,
             heartbeats: 0,
             acted_on: 0,
+            velocity_ff: false,
         }
+    }
+
+    /// Send the trajectory's velocity with each position setpoint (the card's velocity
+    /// feed-forward, and its friction compensation's input when `friction_source` is 1).
+    pub fn set_velocity_ff(&mut self, on: bool) {
+        self.velocity_ff = on;
     }
 
     /// Current phase.
@@ -311,10 +319,19 @@ impl Supervisor {
         self.last_setpoint = v;
         match self.target {
             Target::Position => {
-                let counts = (v * self.scale.motor_counts_per_output_rad()).round();
+                let per_rad = self.scale.motor_counts_per_output_rad();
+                let counts = (v * per_rad).round();
+                // 8 counts/s per LSB
+                let vff = if self.velocity_ff {
+                    (self.trajectory.velocity(t) * per_rad / 8.0)
+                        .round()
+                        .clamp(-32767.0, 32767.0) as i16
+                } else {
+                    0
+                };
                 Message::SetpointMotion(SetpointMotion {
                     position: counts as i64 as i32,
-                    velocity_ff: 0,
+                    velocity_ff: vff,
                     torque_ff: 0,
                 })
             }

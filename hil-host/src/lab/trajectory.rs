@@ -93,6 +93,46 @@ impl Trajectory {
         }
     }
 
+    /// Rate of change at time `t` (units per second): what a supervisor sends as the velocity
+    /// feed-forward. A step's jump has none (it is not a motion the reference can lead).
+    pub fn velocity(&self, t: f64) -> f64 {
+        use std::f64::consts::TAU;
+        match self {
+            Trajectory::Step { .. } => 0.0,
+            Trajectory::Ramp { from, to, duration } => {
+                if *duration > 0.0 && (0.0..*duration).contains(&t) {
+                    (to - from) / duration
+                } else {
+                    0.0
+                }
+            }
+            Trajectory::Sine {
+                amplitude, freq, ..
+            } => amplitude * TAU * freq * (TAU * freq * t).cos(),
+            Trajectory::Chirp {
+                amplitude,
+                f0,
+                f1,
+                duration,
+            } => {
+                if !(*duration > 0.0 && (0.0..*duration).contains(&t)) {
+                    return 0.0;
+                }
+                let k = (f1 - f0) / duration;
+                let phase = TAU * (f0 * t + 0.5 * k * t * t);
+                amplitude * TAU * (f0 + k * t) * phase.cos()
+            }
+            Trajectory::Samples(s) => match s.iter().position(|&(ti, _)| ti > t) {
+                Some(i) if i > 0 => {
+                    let (t0, v0) = s[i - 1];
+                    let (t1, v1) = s[i];
+                    (v1 - v0) / (t1 - t0)
+                }
+                _ => 0.0,
+            },
+        }
+    }
+
     /// Parses a CLI description: `step:TO[@T]`, `ramp:TO:SECONDS`, `sine:AMP:HZ`,
     /// `chirp:AMP:F0:F1:SECONDS`, `csv:FILE` (columns `time_s,value`).
     pub fn parse(spec: &str) -> Result<Trajectory> {
@@ -193,6 +233,28 @@ fn interpolate(s: &[(f64, f64)], t: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The velocity is the derivative of the position, checked by a central difference.
+    #[test]
+    fn velocity_is_the_derivative() {
+        for spec in ["ramp:1:2", "sine:0.3:0.7", "chirp:0.3:0.2:2:8"] {
+            let tr = Trajectory::parse(spec).unwrap();
+            for k in 1..70 {
+                let t = k as f64 * 0.1 + 0.013;
+                let h = 1e-6;
+                let d = (tr.at(t + h) - tr.at(t - h)) / (2.0 * h);
+                assert!(
+                    (tr.velocity(t) - d).abs() < 1e-5,
+                    "{spec} at {t}: {}",
+                    tr.velocity(t)
+                );
+            }
+        }
+        let s = Trajectory::Samples(vec![(0.0, 0.0), (1.0, 0.5), (2.0, 0.0)]);
+        assert_eq!(s.velocity(0.5), 0.5);
+        assert_eq!(s.velocity(1.5), -0.5);
+        assert_eq!(s.velocity(3.0), 0.0);
+    }
 
     #[test]
     fn shapes() {
