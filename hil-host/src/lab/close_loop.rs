@@ -127,6 +127,34 @@ fn tracking() -> Trajectory {
     ])
 }
 
+/// Seconds of the identification run.
+const IDENTIFY_S: f64 = 23.0;
+
+/// The identification trajectory: back and forth over ±0.15 rad at 0.05, 0.1, 0.2 and
+/// 0.4 rad/s (friction is read at constant speeds, as the thesis measured its Table 4.1), with
+/// a 5 mrad, 3 Hz dither on top (the accelerations that separate inertia from friction).
+fn identification() -> Trajectory {
+    let a = 0.15;
+    let mut corners = vec![(0.0, 0.0)];
+    let mut t = 0.0;
+    for v in [0.05, 0.1, 0.2, 0.4] {
+        for (to, dist) in [(a, a), (-a, 2.0 * a), (0.0, a)] {
+            t += dist / v;
+            corners.push((t, to));
+        }
+    }
+    let tri = Trajectory::Samples(corners);
+    let n = (IDENTIFY_S / 0.002) as usize;
+    Trajectory::Samples(
+        (0..=n)
+            .map(|k| {
+                let t = k as f64 * 0.002;
+                (t, tri.at(t) + 0.005 * (TAU * 3.0 * t).sin())
+            })
+            .collect(),
+    )
+}
+
 /// Runs `sc` on `model` to the end, writing its recording to `csv`; returns the rows.
 fn run(model: &Model, sc: Scenario, seed: u64, csv: &Path) -> Result<(Vec<Row>, Lab)> {
     let opts = LabOptions {
@@ -233,8 +261,10 @@ pub fn run_all(
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut files = vec![];
     // 1. identify
-    progress("identify: a chirp under colocated PD");
+    progress("identify: constant speeds both ways, with a dither, under colocated PD");
     let mut sc = Scenario::new(ScenarioKind::Identify, model)?;
+    sc.trajectory = identification();
+    sc.duration_s = IDENTIFY_S;
     // The thesis's "high" stiffness (as the step's): the joint must move through its
     // friction for the record to show it, and at the medium stiffness a 60:1 cycloid's
     // 19 N·m of friction holds it still.
