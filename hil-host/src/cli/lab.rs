@@ -440,9 +440,15 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
     let under = a.laws.under;
     let label = a.plant.label();
     let quiet = a.quiet || a.report.json;
-    let o = close_loop::run_all(model, &label, a.seed, under, &a.out, |what| {
+    let given = a.laws.compensate.as_deref();
+    let o = close_loop::run_all(model, &label, a.seed, under, given, &a.out, |what| {
         if !quiet {
             eprintln!("compensate: {what}");
+        }
+    })
+    .inspect_err(|e| {
+        if let Some(f) = e.downcast_ref::<RunFailed>() {
+            println!("  {}: {}", f.verdict.word(), f.headline);
         }
     })?;
     if a.report.json {
@@ -462,8 +468,11 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
                 "preset": label,
                 "added": o.added,
                 "model": o.model_file.display().to_string(),
+                "coulomb_measured_Nm": o.measured_coulomb,
+                "coulomb_model_Nm": o.model_coulomb,
                 "applied": o.compensation.applied,
                 "left_out": o.compensation.left_out,
+                "hold_limit_cycle_counts": o.hold.iter().map(|(u, c)| serde_json::json!({"under": u, "counts": c})).collect::<Vec<_>>(),
                 "before": fig(&o.before),
                 "after": fig(&o.after),
                 "files": o.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
@@ -471,9 +480,18 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
         );
     } else {
         println!(
-            "\ncompensate on {label} — identify, diagnose --auto ({}), compensate (under {under}), seed {}",
-            if o.added.is_empty() { "nothing added".to_string() } else { o.added.join(" → ") },
+            "\ncompensate on {label} — identify, {}, compensate (under {under}), seed {}",
+            match (given, o.added.is_empty()) {
+                (Some(f), _) => format!("the model {}", f.display()),
+                (None, true) => "diagnose --auto (nothing added)".to_string(),
+                (None, false) => format!("diagnose --auto ({})", o.added.join(" → ")),
+            },
             a.seed
+        );
+        println!(
+            "  Coulomb at the motor: model {} N·m, measured at constant speed {} N·m",
+            jointlab_workbench::units::eng(o.model_coulomb),
+            jointlab_workbench::units::eng(o.measured_coulomb)
         );
         for l in &o.compensation.applied {
             println!("  on the card: {l}");
@@ -482,19 +500,26 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
             println!("  not compensated: {l}");
         }
         print!("{}", o.table());
+        println!(
+            "  the hold with friction compensated on the measured velocity instead: limit \
+             cycle {} counts p-p at under-compensation {}, {} at {}",
+            o.hold[0].1, o.hold[0].0, o.hold[1].1, o.hold[1].0
+        );
         for f in &o.files {
             println!("  wrote {}", f.display());
         }
     }
     if o.after.tracking_rms > o.before.tracking_rms {
+        let headline = format!(
+            "the compensation made tracking worse ({} → {} rad RMS): the model does not \
+             describe this joint",
+            jointlab_workbench::units::eng(o.before.tracking_rms),
+            jointlab_workbench::units::eng(o.after.tracking_rms)
+        );
+        println!("  {}: {headline}", Verdict::Incomplete.word());
         return Err(RunFailed {
             verdict: Verdict::Incomplete,
-            headline: format!(
-                "the compensation made tracking worse ({} → {} rad RMS): the model does not \
-                 describe this joint",
-                jointlab_workbench::units::eng(o.before.tracking_rms),
-                jointlab_workbench::units::eng(o.after.tracking_rms)
-            ),
+            headline,
         }
         .into());
     }

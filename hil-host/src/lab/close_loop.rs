@@ -10,16 +10,18 @@
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{anyhow, Context, Result};
 use jointlab_workbench::data::{self, Columns};
 use jointlab_workbench::diagnose::Options;
 use jointlab_workbench::model::Model as WbModel;
 use jointlab_workbench::refine;
 use jointlab_workbench::residual::Prepared;
+use jointlab_workbench::units::eng;
 use sim_plant::Model;
 
 use super::compensate::Compensation;
 use super::recorder::{read_rows, Row};
+use super::report::{RunFailed, Verdict};
 use super::scenario::{Scenario, ScenarioKind, SETTLE_S};
 use super::trajectory::Trajectory;
 use super::{Lab, LabOptions};
@@ -46,6 +48,14 @@ pub struct Outcome {
     pub before: Figures,
     /// With it.
     pub after: Figures,
+    /// Coulomb friction at the motor measured at constant speed in the identification run
+    /// (mean of the two directions), N·m.
+    pub measured_coulomb: f64,
+    /// The model's (mean of the two directions), N·m at the motor.
+    pub model_coulomb: f64,
+    /// The held step's limit cycle (motor counts p-p) with the friction compensated on the
+    /// measured velocity instead, at under-compensation 1 and at the one asked for.
+    pub hold: [(f64, f64); 2],
     /// The compensation applied.
     pub compensation: Compensation,
     /// The model `diagnose --auto` wrote.
@@ -100,8 +110,8 @@ impl Outcome {
             };
             s += &format!(
                 "  {name:<24} {:>12} {:>12} {change:>9}  {unit}\n",
-                jointlab_workbench::units::eng(x),
-                jointlab_workbench::units::eng(y)
+                eng(x),
+                eng(y)
             );
         }
         s
@@ -127,6 +137,10 @@ fn tracking() -> Trajectory {
     ])
 }
 
+/// A model whose Coulomb friction exceeds the measured one by more than this factor is
+/// refused: with the under-compensation it would already cancel more than all of it.
+const OVER: f64 = 1.25;
+
 /// Seconds of the identification run.
 const IDENTIFY_S: f64 = 23.0;
 
@@ -134,16 +148,7 @@ const IDENTIFY_S: f64 = 23.0;
 /// 0.4 rad/s (friction is read at constant speeds, as the thesis measured its Table 4.1), with
 /// a 5 mrad, 3 Hz dither on top (the accelerations that separate inertia from friction).
 fn identification() -> Trajectory {
-    let a = 0.15;
-    let mut corners = vec![(0.0, 0.0)];
-    let mut t = 0.0;
-    for v in [0.05, 0.1, 0.2, 0.4] {
-        for (to, dist) in [(a, a), (-a, 2.0 * a), (0.0, a)] {
-            t += dist / v;
-            corners.push((t, to));
-        }
-    }
-    let tri = Trajectory::Samples(corners);
+    let tri = Trajectory::Samples(identification_corners());
     let n = (IDENTIFY_S / 0.002) as usize;
     Trajectory::Samples(
         (0..=n)
@@ -153,6 +158,45 @@ fn identification() -> Trajectory {
             })
             .collect(),
     )
+}
+
+/// The identification triangle's corners (time, output rad).
+fn identification_corners() -> Vec<(f64, f64)> {
+    let a = 0.15;
+    let mut corners = vec![(0.0, 0.0)];
+    let mut t = 0.0;
+    for v in [0.05, 0.1, 0.2, 0.4] {
+        for (to, dist) in [(a, a), (-a, 2.0 * a), (0.0, a)] {
+            t += dist / v;
+            corners.push((t, to));
+        }
+    }
+    corners
+}
+
+/// Coulomb friction at the motor (N·m) read straight from the identification record: the
+/// mean torque command and speed over each constant-speed stretch (its first 0.4 s and a
+/// whole number of dither periods left out), fitted with `c·sign(ω) + B·ω`. It shares
+/// nothing with the workbench, so it can check what the workbench's model claims.
+fn plateau_coulomb(rows: &[Row]) -> f64 {
+    let corners = identification_corners();
+    let (mut w, mut tau) = (vec![], vec![]);
+    for seg in corners.windows(2) {
+        let (t0, t1) = (seg[0].0 + SETTLE_S + 0.4, seg[1].0 + SETTLE_S);
+        // whole dither periods (1/3 s)
+        let t1 = t0 + ((t1 - t0) * 3.0).floor() / 3.0;
+        let inside: Vec<&Row> = rows
+            .iter()
+            .filter(|r| r.time_s >= t0 && r.time_s < t1)
+            .collect();
+        if inside.len() < 100 {
+            continue;
+        }
+        let n = inside.len() as f64;
+        w.push(inside.iter().map(|r| r.motor_vel_rad_s).sum::<f64>() / n);
+        tau.push(inside.iter().map(|r| r.torque_cmd_nm).sum::<f64>() / n);
+    }
+    super::summary::fit_viscous_coulomb(&w, &tau).1
 }
 
 /// Runs `sc` on `model` to the end, writing its recording to `csv`; returns the rows.
@@ -217,22 +261,12 @@ pub fn tasks(
         (moving.iter().map(|r| err(r).powi(2)).sum::<f64>() / moving.len().max(1) as f64).sqrt();
     f.peak_error = moving.iter().map(|r| err(r).abs()).fold(0.0, f64::max);
     // A step held at its end: steady-state error and the limit cycle.
-    let sc = Scenario::new(ScenarioKind::Step, model)?;
-    let cpr = sc.scale.motor_cpr();
-    let end = SETTLE_S + sc.duration_s;
-    let csv = out.join(format!("step-{tag}.csv"));
-    let (rows, _) = run(model, with(sc, true), seed, &csv).context("the step")?;
-    files.push(csv);
-    let held: Vec<&Row> = rows.iter().filter(|r| r.time_s > end - 0.5).collect();
-    f.steady_state = held.iter().map(|r| err(r)).sum::<f64>() / held.len().max(1) as f64;
-    let counts = |r: &&Row| (r.motor_pos_rad / TAU * cpr).round();
-    let (lo, hi) = held
-        .iter()
-        .map(counts)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
-            (a.min(c), b.max(c))
-        });
-    f.limit_cycle_counts = if held.is_empty() { 0.0 } else { hi - lo };
+    let (steady, lc) = held_step(model, seed, &out.join(format!("step-{tag}.csv")), |sc| {
+        with(sc, true)
+    })?;
+    files.push(out.join(format!("step-{tag}.csv")));
+    f.steady_state = steady;
+    f.limit_cycle_counts = lc;
     // Stiffness emulation against the crank.
     // A spring, lightly damped (ζ ≈ 0.2 instead of the scenario's 0.7): the loop's area is
     // then the transmission's friction, not the damping asked for.
@@ -248,6 +282,63 @@ pub fn tasks(
     Ok((f, track))
 }
 
+/// The step scenario held at its end, its gains set by `with`: the mean error over the
+/// last 0.5 s (output rad) and the motor encoder's peak-to-peak there (counts).
+fn held_step(
+    model: &Model,
+    seed: u64,
+    csv: &Path,
+    with: impl FnOnce(Scenario) -> Scenario,
+) -> Result<(f64, f64)> {
+    let sc = Scenario::new(ScenarioKind::Step, model)?;
+    let cpr = sc.scale.motor_cpr();
+    let end = SETTLE_S + sc.duration_s;
+    let (rows, _) = run(model, with(sc), seed, csv).context("the step")?;
+    let held: Vec<&Row> = rows.iter().filter(|r| r.time_s > end - 0.5).collect();
+    if held.is_empty() {
+        return Ok((0.0, 0.0));
+    }
+    let steady = held
+        .iter()
+        .map(|r| r.setpoint_pos_rad - r.output_pos_rad)
+        .sum::<f64>()
+        / held.len() as f64;
+    let (lo, hi) = held
+        .iter()
+        .map(|r| (r.motor_pos_rad / TAU * cpr).round())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
+            (a.min(c), b.max(c))
+        });
+    Ok((steady, hi - lo))
+}
+
+/// The thesis's §5 hazard of compensating on the measured velocity at a high-gain hold:
+/// the limit cycle (motor counts p-p) of the held step with `comp`'s friction on the
+/// measured velocity at under-compensation 1 and at `under`.
+pub fn hold_limit_cycles(
+    model: &Model,
+    comp: &Compensation,
+    under: f64,
+    seed: u64,
+    out: &Path,
+) -> Result<[(f64, f64); 2]> {
+    let mut r = [(1.0, 0.0), (under, 0.0)];
+    for (u, lc) in r.iter_mut() {
+        let csv = out.join(format!("hold-u{u}.csv"));
+        let (_, counts) = held_step(model, seed, &csv, |mut sc| {
+            let mut c = comp.clone();
+            if let Some(f) = &mut c.friction {
+                f.under = *u;
+            }
+            c.within_damping(&sc.gains);
+            sc.gains.friction = c.friction;
+            sc
+        })?;
+        *lc = counts;
+    }
+    Ok(r)
+}
+
 /// Identify, diagnose, compensate, compare. `out` receives the recordings, the model and
 /// the plot.
 pub fn run_all(
@@ -255,6 +346,7 @@ pub fn run_all(
     label: &str,
     seed: u64,
     under: f64,
+    given: Option<&Path>,
     out: &Path,
     mut progress: impl FnMut(&str),
 ) -> Result<Outcome> {
@@ -273,31 +365,54 @@ pub fn run_all(
     sc.gains.damping = step.gains.damping;
     let csv = out.join(format!("identify-{label}.csv"));
     let scale = sc.scale;
-    run(model, sc, seed, &csv).context("the identification run")?;
+    let (id_rows, _) = run(model, sc, seed, &csv).context("the identification run")?;
     files.push(csv.clone());
-    // 2. diagnose --auto
-    progress("diagnose --auto: which effects the recording needs");
-    let rec = data::load(&csv, &Columns::new("torque_cmd_Nm", "motor_pos_rad"))?;
-    let p = Prepared::checked(&rec, None).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let mut wb = WbModel::baseline();
-    wb.on_axis(p.axis, &p.input_unit)?;
-    let run_auto = refine::auto(&mut wb, &p, None, &Options::default(), 6)?;
-    let added = run_auto
-        .steps
-        .iter()
-        .filter_map(|s| s.added.clone())
-        .collect();
-    let model_file = out.join(format!("model-{label}.toml"));
-    wb.save(&model_file)?;
-    files.push(model_file.clone());
-    // 3. compensate
+    let measured_coulomb = plateau_coulomb(&id_rows);
+    // 2. diagnose --auto (or the model given)
+    let (wb, added, model_file) = match given {
+        Some(f) => (WbModel::load(f)?, vec![], f.to_path_buf()),
+        None => {
+            progress("diagnose --auto: which effects the recording needs");
+            let rec = data::load(&csv, &Columns::new("torque_cmd_Nm", "motor_pos_rad"))?;
+            let p = Prepared::checked(&rec, None).map_err(|e| anyhow!("{e:?}"))?;
+            let mut wb = WbModel::baseline();
+            wb.on_axis(p.axis, &p.input_unit)?;
+            let auto = refine::auto(&mut wb, &p, None, &Options::default(), 6)?;
+            let added = auto.steps.iter().filter_map(|s| s.added.clone()).collect();
+            let model_file = out.join(format!("model-{label}.toml"));
+            wb.save(&model_file)?;
+            files.push(model_file.clone());
+            (wb, added, model_file)
+        }
+    };
+    // 3. compensate, if the model's friction is not above the one measured
     let compensation = Compensation::from_model(&wb.to_sim(), &scale, under)
         .with_context(|| format!("compensating {}", model_file.display()))?;
+    let model_coulomb = compensation.friction.map_or(0.0, |f| {
+        0.5 * (f.coulomb_pos + f.coulomb_neg) / scale.gear_ratio()
+    });
+    if model_coulomb > OVER * measured_coulomb.max(0.0) {
+        return Err(RunFailed {
+            verdict: Verdict::Incomplete,
+            headline: format!(
+                "{}: its Coulomb friction ({} N·m at the motor) is {:.0} % of the friction the \
+             identification run measured at constant speed ({} N·m): compensating it would \
+             push the joint, not cancel a friction; refused",
+                model_file.display(),
+                eng(model_coulomb),
+                100.0 * model_coulomb / measured_coulomb,
+                eng(measured_coulomb)
+            ),
+        }
+        .into());
+    }
     // 4. the tasks, without and with
     progress("tasks without compensation");
     let (before, rows_b) = tasks(model, None, seed, out, "before", &mut files)?;
     progress("tasks with compensation");
     let (after, rows_a) = tasks(model, Some(&compensation), seed, out, "after", &mut files)?;
+    progress("the hold with friction compensated on the measured velocity");
+    let hold = hold_limit_cycles(model, &compensation, under, seed, out)?;
     let png = out.join(format!("compensate-{label}.png"));
     super::plot::plot_before_after(
         &png,
@@ -309,6 +424,9 @@ pub fn run_all(
     Ok(Outcome {
         before,
         after,
+        measured_coulomb,
+        model_coulomb,
+        hold,
         compensation,
         model_file,
         added,
