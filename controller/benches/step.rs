@@ -62,8 +62,9 @@ fn joint_cfg() -> JointConfig {
             .unwrap()
         }),
         ripple: Some(units::ripple_table(&s, 128, &tab).unwrap()),
+        friction_on_setpoint: false,
         offset: 120,
-        gravity: Some(units::ripple_table(&s, 138_240, &tab).unwrap()),
+        gravity: Gravity::new(138_240, 900, -400),
         tau_max: 20000,
         transfer_shift: 6,
     }

@@ -11,7 +11,7 @@
 
 use controller::card::Card;
 use controller::fixed_math::{Alpha, Vel};
-use controller::laws::{Feedback, ForceConfig, ForceLaw};
+use controller::laws::{Feedback, ForceConfig, ForceLaw, Gravity};
 use controller::laws::{
     FrictionComp, FrictionConfig, ImpComp, ImpCompConfig, ImpedanceConfig, ImpedanceLaw,
     InputDamping, JointConfig, JointState, Measurements, Mode, PositionConfig, PositionLaw,
@@ -243,8 +243,9 @@ impl Bench {
                 friction: Some(fric),
                 imp_comp: Some(ic),
                 ripple: Some(rip.clone()),
+                friction_on_setpoint: false,
                 offset: 120,
-                gravity: Some(rip.clone()),
+                gravity: Gravity::new(138_240, 900, -400),
                 tau_max: 20000,
                 transfer_shift: 6,
             },

@@ -12,9 +12,9 @@
 
 use crate::fixed_math::{Alpha, Gain, Torque};
 use crate::laws::{
-    DamperConfig, Feedback, ForceConfig, ForceDamping, FrictionConfig, ImpCompConfig,
+    DamperConfig, Feedback, ForceConfig, ForceDamping, FrictionConfig, Gravity, ImpCompConfig,
     ImpedanceConfig, InputDamping, JointConfig, Mode as LawMode, PidConfig, PositionConfig,
-    RippleTable, RIPPLE_MAX,
+    RippleTable,
 };
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_IN_MOTOR_LSB};
@@ -89,9 +89,6 @@ pub struct CardConfig {
     pub standstill_velocity: i64,
     /// Gain that turns the velocity feed-forward (1/16 count/s) into torque (= Be).
     pub velocity_ff_gain: Gain,
-    /// Friction compensation on the setpoint's velocity feed-forward (`friction_source` 1),
-    /// added with it; the joint law's own is then off.
-    pub reference_friction: Option<FrictionConfig>,
     /// Supervisor watchdog timeout, µs.
     pub supervisor_timeout_us: u64,
     /// What to do when it fires.
@@ -172,11 +169,9 @@ pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
     .map_err(|why| ConfigError::Unstable { why })
 }
 
-/// The gravity feed-forward `gravity_sin·sin θ + gravity_cos·cos θ`, θ the output angle, as
-/// a 64-entry table over one output revolution of motor counts: the sine is taken here, at
-/// commit, so the 1 kHz path only interpolates (within 0.2 % of the sine). `None` when both
-/// amplitudes are 0.
-fn gravity_table(s: &ParamStore) -> Result<Option<RippleTable>, ConfigError> {
+/// The gravity feed-forward `gravity_sin·sin θ + gravity_cos·cos θ`, θ the output angle
+/// over one output revolution of motor counts. `None` when both amplitudes are 0.
+fn gravity(s: &ParamStore) -> Result<Option<Gravity>, ConfigError> {
     let (gs, gc) = (s.raw(p::GRAVITY_SIN), s.raw(p::GRAVITY_COS));
     if gs == 0 && gc == 0 {
         return Ok(None);
@@ -190,17 +185,7 @@ fn gravity_table(s: &ParamStore) -> Result<Option<RippleTable>, ConfigError> {
         .saturating_add(1 << 15)
         >> 16;
     let per_rev = u32::try_from(per_rev).map_err(|_| bad)?;
-    let mut entries = [0i16; RIPPLE_MAX];
-    let step = core::f32::consts::TAU / RIPPLE_MAX as f32;
-    for (i, e) in entries.iter_mut().enumerate() {
-        let angle = i as f32 * step;
-        let (sin, cos) = (micromath::F32Ext::sin(angle), micromath::F32Ext::cos(angle));
-        let v = gs as f32 * sin + gc as f32 * cos;
-        *e = micromath::F32Ext::round(v).clamp(-32767.0, 32767.0) as i16;
-    }
-    RippleTable::new(per_rev, &entries)
-        .map(Some)
-        .map_err(|_| bad)
+    Gravity::new(per_rev, gs, gc).map(Some).ok_or(bad)
 }
 
 /// Builds the running configuration for `mode` (or with no main law, for `None`).
@@ -299,14 +284,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         None
     };
 
-    // On the setpoint's velocity (the card adds it with the other feed-forward) or on the
-    // measured one (the joint law adds it).
-    let on_setpoint = s.raw(p::FRICTION_SOURCE) == 1;
-    let (friction, reference_friction) = if on_setpoint {
-        (None, friction_law)
-    } else {
-        (friction_law, None)
-    };
+    let friction = friction_law;
 
     let imp_comp = if s.raw(p::IMPEDANCE_COMP_ENABLE) != 0 {
         Some(ImpCompConfig {
@@ -348,7 +326,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
     } else {
         None
     };
-    let gravity = gravity_table(s)?;
+    let gravity = gravity(s)?;
 
     let (pmin, pmax) = (s.raw(p::POSITION_MIN), s.raw(p::POSITION_MAX));
     if pmin > pmax {
@@ -382,6 +360,8 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
                 b1e: per_rate(p::B1E)?,
             },
             friction,
+            // On the setpoint's velocity the card adds it with that feed-forward.
+            friction_on_setpoint: s.raw(p::FRICTION_SOURCE) == 1,
             imp_comp,
             ripple,
             offset: s.raw(p::TORQUE_OFFSET),
@@ -408,7 +388,6 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         quick_stop_damping: per_rate(p::QUICK_STOP_DAMPING)?,
         standstill_velocity: counts_per_s_to_law(s.raw(p::STANDSTILL_VELOCITY)),
         velocity_ff_gain: be,
-        reference_friction,
         supervisor_timeout_us: ms_to_us(s.raw(p::SUPERVISOR_TIMEOUT)),
         watchdog_reaction: WatchdogReaction::from_u8(
             u8::try_from(s.raw(p::WATCHDOG_REACTION)).unwrap_or(0),

@@ -935,13 +935,13 @@ impl Card {
                         | Mode::ImpedanceColocated
                         | Mode::ImpedanceNonColocated,
                     ) => {
-                        let friction = match &self.cfg.reference_friction {
-                            Some(f) => {
+                        let friction = match &self.cfg.joint.friction {
+                            Some(f) if self.cfg.joint.friction_on_setpoint => {
                                 let o = self.ref_friction.step(f, vff);
                                 flags |= o.flags;
                                 i64::from(o.tau)
                             }
-                            None => 0,
+                            _ => 0,
                         };
                         i64::from(self.torque_ff)
                             .saturating_add(self.cfg.velocity_ff_gain.apply(vff.to_bits()))

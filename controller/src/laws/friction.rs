@@ -92,7 +92,11 @@ impl FrictionComp {
     /// Feed-forward torque for motor velocity `v`.
     #[inline]
     pub fn step(&mut self, cfg: &FrictionConfig, v: Vel) -> Output {
-        let vb = self.lp.step(v.to_bits(), cfg.alpha);
+        let vb = if cfg.alpha >= Alpha::ONE {
+            v.to_bits()
+        } else {
+            self.lp.step(v.to_bits(), cfg.alpha)
+        };
         let coulomb = if vb >= 0 {
             cfg.slope_pos
                 .apply(vb)

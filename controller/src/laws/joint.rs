@@ -21,6 +21,7 @@
 use super::damping::{DamperConfig, DamperLaw, InputDamping};
 use super::force::{ForceConfig, ForceLaw};
 use super::friction::{FrictionComp, FrictionConfig};
+use super::gravity::Gravity;
 use super::impcomp::{ImpComp, ImpCompConfig};
 use super::impedance::{ImpedanceConfig, ImpedanceLaw};
 use super::position::{Feedback, PositionConfig, PositionLaw};
@@ -92,6 +93,8 @@ pub struct JointConfig {
     pub input_damping: InputDamping,
     /// Friction feed-forward on ẋ1.
     pub friction: Option<FrictionConfig>,
+    /// The friction feed-forward is the caller's, on the setpoint's velocity: the law skips it.
+    pub friction_on_setpoint: bool,
     /// Impedance compensation (active in position and impedance modes; uses the same encoder
     /// and setpoint as the main law).
     pub imp_comp: Option<ImpCompConfig>,
@@ -99,8 +102,8 @@ pub struct JointConfig {
     pub ripple: Option<RippleTable>,
     /// Constant feed-forward (a measured offset), LSB.
     pub offset: Torque,
-    /// Gravity feed-forward: a table over one output revolution of x1.
-    pub gravity: Option<RippleTable>,
+    /// Gravity feed-forward on the output angle.
+    pub gravity: Option<Gravity>,
     /// Final |τ| limit, LSB (values above `i16::MAX` are treated as `i16::MAX`).
     pub tau_max: Torque,
     /// Transfer-offset decay shift (τ ≈ 2^shift ticks); 0 means "no offset, jump".
@@ -113,6 +116,7 @@ impl Default for JointConfig {
             mode: Mode::Off,
             input_damping: InputDamping::default(),
             friction: None,
+            friction_on_setpoint: false,
             imp_comp: None,
             ripple: None,
             offset: 0,
@@ -234,7 +238,7 @@ impl JointState {
             .torque(m.v1)
             .clamp(-(1i64 << 40), 1i64 << 40);
         let mut sum = i64::from(law.tau).wrapping_add(damping);
-        if let Some(f) = &cfg.friction {
+        if let (Some(f), false) = (&cfg.friction, cfg.friction_on_setpoint) {
             let o = self.friction.step(f, m.v1);
             flags |= o.flags;
             sum = sum.wrapping_add(i64::from(o.tau));

@@ -47,6 +47,7 @@
 pub mod damping;
 pub mod force;
 pub mod friction;
+pub mod gravity;
 pub mod impcomp;
 pub mod impedance;
 pub mod joint;
@@ -57,6 +58,7 @@ pub mod ripple;
 pub use damping::{DamperConfig, DamperLaw, InputDamping};
 pub use force::{ForceConfig, ForceDamping, ForceLaw};
 pub use friction::{FrictionComp, FrictionConfig, DEFAULT_UNDERCOMP};
+pub use gravity::Gravity;
 pub use impcomp::{ImpComp, ImpCompConfig};
 pub use impedance::{ImpedanceConfig, ImpedanceLaw};
 pub use joint::{JointConfig, JointOutput, JointState, Measurements, Mode, ModeKind, Setpoint};

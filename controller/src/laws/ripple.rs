@@ -26,63 +26,34 @@ pub enum RippleError {
     Period,
 }
 
-/// The ripple table (motor-side torque LSB per entry).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RippleTable {
-    period: Reciprocal,
+/// A period of `P` counts on the multi-turn motor position, and the arithmetic that places a
+/// position in it: shared by the ripple table and the gravity feed-forward.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Period {
+    recip: Reciprocal,
     /// 2⁶³ mod period: moves an `i64` position into `u64` without changing its residue.
     offset: u32,
-    /// Counts added to the position before the lookup, in [0, period).
-    phase: u32,
-    table: Vec<i16, RIPPLE_MAX>,
 }
 
-impl RippleTable {
-    /// Build a table over `period` counts from `entries` (2..=64 of them, `period ≥ len`).
-    pub fn new(period: u32, entries: &[i16]) -> Result<Self, RippleError> {
-        if entries.len() < 2 || entries.len() > RIPPLE_MAX {
-            return Err(RippleError::Length);
-        }
-        if period == 0 || (period as usize) < entries.len() {
-            return Err(RippleError::Period);
-        }
-        let table = Vec::from_slice(entries).map_err(|_| RippleError::Length)?;
-        // period ≥ len ≥ 2
-        let period = Reciprocal::new(period).ok_or(RippleError::Period)?;
-        let (_, offset) = period.div_rem(1u64 << 63);
-        Ok(RippleTable {
-            period,
-            offset,
-            phase: 0,
-            table,
-        })
+impl Period {
+    /// A period of `counts` (≥ 2).
+    pub fn new(counts: u32) -> Option<Self> {
+        let recip = Reciprocal::new(counts)?;
+        let (_, offset) = recip.div_rem(1u64 << 63);
+        Some(Period { recip, offset })
     }
 
-    /// The same table, looked up at `x + phase` (the phase taken modulo the period).
-    pub fn with_phase(mut self, phase: u32) -> Self {
-        self.phase = self.period.div_rem_u32(phase).1;
-        self
+    /// Counts per period.
+    pub fn counts(&self) -> u32 {
+        self.recip.divisor()
     }
 
-    /// Period in counts.
-    pub fn period(&self) -> u32 {
-        self.period.divisor()
-    }
-
-    /// The entries.
-    pub fn entries(&self) -> &[i16] {
-        &self.table
-    }
-
-    /// Interpolated correction at multi-turn position `x` (motor counts).
+    /// Euclidean phase of `x` in [0, period).
     #[inline]
-    pub fn torque(&self, x: Counts) -> Torque {
-        let x = x.saturating_add(i64::from(self.phase));
-        let n = self.table.len() as u32; // 2..=64
-        let p = self.period;
-        let period = p.divisor(); // ≥ n ≥ 2
-                                  // Euclidean phase in [0, period).
-        let phase = match u32::try_from(x.unsigned_abs()) {
+    pub fn phase(&self, x: Counts) -> u32 {
+        let p = self.recip;
+        let period = p.divisor();
+        match u32::try_from(x.unsigned_abs()) {
             // |x| < 2³² (the usual case): a 32-bit remainder, mirrored for negative x.
             Ok(m) => {
                 let (_, r) = p.div_rem_u32(m);
@@ -101,22 +72,87 @@ impl RippleTable {
                     r.wrapping_add(period.wrapping_sub(self.offset))
                 }
             }
-        };
-        // scaled position in table units: phase·n < 2³²·2⁶
-        let (idx, frac) = p.div_rem(mul_u32_wide(phase, n));
-        let i0 = idx as usize;
-        let i1 = if (idx as u32).wrapping_add(1) >= n {
+        }
+    }
+
+    /// Where `x` falls in an `n`-entry table over the period: the entry and the fraction
+    /// past it, in units of 1/period.
+    #[inline]
+    pub fn locate(&self, x: Counts, n: u32) -> (usize, u32) {
+        // phase·n < 2³²·2⁶
+        let (idx, frac) = self.recip.div_rem(mul_u32_wide(self.phase(x), n));
+        (idx as usize, frac)
+    }
+
+    /// `a + (b − a)·frac/period`, rounded half away from zero (|b − a| < 2¹⁷).
+    #[inline]
+    pub fn lerp(&self, a: i64, b: i64, frac: u32) -> i64 {
+        // (b − a)·frac < 2¹⁷·2³² = 2⁴⁹
+        let num = mul_i64_u32(b.wrapping_sub(a), frac);
+        let half = u64::from(self.recip.divisor() >> 1);
+        let (q, _) = self.recip.div_rem(num.unsigned_abs().wrapping_add(half));
+        let q = q as i64;
+        a.wrapping_add(if num >= 0 { q } else { q.wrapping_neg() })
+    }
+}
+
+/// The ripple table (motor-side torque LSB per entry).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RippleTable {
+    period: Period,
+    /// Counts added to the position before the lookup, in [0, period).
+    phase: u32,
+    table: Vec<i16, RIPPLE_MAX>,
+}
+
+impl RippleTable {
+    /// Build a table over `period` counts from `entries` (2..=64 of them, `period ≥ len`).
+    pub fn new(period: u32, entries: &[i16]) -> Result<Self, RippleError> {
+        if entries.len() < 2 || entries.len() > RIPPLE_MAX {
+            return Err(RippleError::Length);
+        }
+        if period == 0 || (period as usize) < entries.len() {
+            return Err(RippleError::Period);
+        }
+        let table = Vec::from_slice(entries).map_err(|_| RippleError::Length)?;
+        // period ≥ len ≥ 2
+        let period = Period::new(period).ok_or(RippleError::Period)?;
+        Ok(RippleTable {
+            period,
+            phase: 0,
+            table,
+        })
+    }
+
+    /// The same table, looked up at `x + phase` (the phase taken modulo the period).
+    pub fn with_phase(mut self, phase: u32) -> Self {
+        self.phase = self.period.phase(i64::from(phase));
+        self
+    }
+
+    /// Period in counts.
+    pub fn period(&self) -> u32 {
+        self.period.counts()
+    }
+
+    /// The entries.
+    pub fn entries(&self) -> &[i16] {
+        &self.table
+    }
+
+    /// Interpolated correction at multi-turn position `x` (motor counts).
+    #[inline]
+    pub fn torque(&self, x: Counts) -> Torque {
+        let x = x.saturating_add(i64::from(self.phase));
+        let n = self.table.len() as u32; // 2..=64
+        let (i0, frac) = self.period.locate(x, n);
+        let i1 = if (i0 as u32).wrapping_add(1) >= n {
             0
         } else {
             i0.wrapping_add(1)
         };
         let a = i64::from(self.table.get(i0).copied().unwrap_or(0));
         let b = i64::from(self.table.get(i1).copied().unwrap_or(0));
-        // (b − a)·frac: |b−a| < 2¹⁷, frac < 2³² ⇒ < 2⁴⁹. Rounded division (half away from 0).
-        let num = mul_i64_u32(b.wrapping_sub(a), frac);
-        let half = u64::from(period >> 1);
-        let (q, _) = p.div_rem(num.unsigned_abs().wrapping_add(half));
-        let q = q as i64;
-        sat_i32(a.wrapping_add(if num >= 0 { q } else { q.wrapping_neg() })).0
+        sat_i32(self.period.lerp(a, b, frac)).0
     }
 }

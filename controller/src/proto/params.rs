@@ -31,9 +31,9 @@
 use super::field::wire_enum;
 use super::ParamStatus;
 
-/// Entries the card must be able to stage in one set: a whole gain set with friction, ripple
-/// table and feed-forward (about 110 entries) and a margin.
-pub const STAGING_CAPACITY: usize = 128;
+/// Entries the card must be able to stage in one set: a gain set with friction, feed-forward
+/// and a 32-entry ripple table is about 80.
+pub const STAGING_CAPACITY: usize = 96;
 
 /// Number of ripple-table entries (ids `RIPPLE_TABLE ..= RIPPLE_TABLE + 63`).
 pub const RIPPLE_TABLE_LEN: u16 = 64;

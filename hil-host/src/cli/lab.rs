@@ -445,11 +445,6 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
         if !quiet {
             eprintln!("compensate: {what}");
         }
-    })
-    .inspect_err(|e| {
-        if let Some(f) = e.downcast_ref::<RunFailed>() {
-            println!("  {}: {}", f.verdict.word(), f.headline);
-        }
     })?;
     if a.report.json {
         let fig = |f: &close_loop::Figures| {
@@ -468,11 +463,11 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
                 "preset": label,
                 "added": o.added,
                 "model": o.model_file.display().to_string(),
-                "coulomb_measured_Nm": o.measured_coulomb,
                 "coulomb_model_Nm": o.model_coulomb,
                 "applied": o.compensation.applied,
                 "left_out": o.compensation.left_out,
                 "hold_limit_cycle_counts": o.hold.iter().map(|(u, c)| serde_json::json!({"under": u, "counts": c})).collect::<Vec<_>>(),
+                "refused": o.refusal(under),
                 "before": fig(&o.before),
                 "after": fig(&o.after),
                 "files": o.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
@@ -487,11 +482,6 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
                 (None, false) => format!("diagnose --auto ({})", o.added.join(" → ")),
             },
             a.seed
-        );
-        println!(
-            "  Coulomb at the motor: model {} N·m, measured at constant speed {} N·m",
-            jointlab_workbench::units::eng(o.model_coulomb),
-            jointlab_workbench::units::eng(o.measured_coulomb)
         );
         for l in &o.compensation.applied {
             println!("  on the card: {l}");
@@ -509,14 +499,10 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
             println!("  wrote {}", f.display());
         }
     }
-    if o.after.tracking_rms > o.before.tracking_rms {
-        let headline = format!(
-            "the compensation made tracking worse ({} → {} rad RMS): the model does not \
-             describe this joint",
-            jointlab_workbench::units::eng(o.before.tracking_rms),
-            jointlab_workbench::units::eng(o.after.tracking_rms)
-        );
-        println!("  {}: {headline}", Verdict::Incomplete.word());
+    if let Some(headline) = o.refusal(under) {
+        if !a.report.json {
+            println!("  {}: {headline}", Verdict::Incomplete.word());
+        }
         return Err(RunFailed {
             verdict: Verdict::Incomplete,
             headline,

@@ -21,7 +21,6 @@ use sim_plant::Model;
 
 use super::compensate::Compensation;
 use super::recorder::{read_rows, Row};
-use super::report::{RunFailed, Verdict};
 use super::scenario::{Scenario, ScenarioKind, SETTLE_S};
 use super::trajectory::Trajectory;
 use super::{Lab, LabOptions};
@@ -48,9 +47,6 @@ pub struct Outcome {
     pub before: Figures,
     /// With it.
     pub after: Figures,
-    /// Coulomb friction at the motor measured at constant speed in the identification run
-    /// (mean of the two directions), N·m.
-    pub measured_coulomb: f64,
     /// The model's (mean of the two directions), N·m at the motor.
     pub model_coulomb: f64,
     /// The held step's limit cycle (motor counts p-p) with the friction compensated on the
@@ -67,6 +63,34 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// Why the compensation must not be kept, if it must not: it made tracking worse, or it
+    /// took more of the emulated spring's loss away than friction compensated at `under`
+    /// can (that loss is friction plus the damping asked for, and `under` leaves at least
+    /// 1 − under of the friction's: half that margin is allowed for the fit's scatter).
+    pub fn refusal(&self, under: f64) -> Option<String> {
+        let (b, a) = (&self.before, &self.after);
+        if a.tracking_rms > b.tracking_rms {
+            return Some(format!(
+                "the compensation made tracking worse ({} → {} rad RMS): the model does not \
+                 describe this joint",
+                eng(b.tracking_rms),
+                eng(a.tracking_rms)
+            ));
+        }
+        let floor = 0.5 * (1.0 - under) * b.loop_area;
+        if a.loop_area < floor {
+            return Some(format!(
+                "the compensation took the emulated spring's loss from {} to {} J, below the \
+                 {} J that friction compensated at {under} leaves: the model's friction is \
+                 more than the joint's (over-compensation injects energy); refused",
+                eng(b.loop_area),
+                eng(a.loop_area),
+                eng(floor)
+            ));
+        }
+        None
+    }
+
     /// The before/after table.
     pub fn table(&self) -> String {
         let b = &self.before;
@@ -137,10 +161,6 @@ fn tracking() -> Trajectory {
     ])
 }
 
-/// A model whose Coulomb friction exceeds the measured one by more than this factor is
-/// refused: with the under-compensation it would already cancel more than all of it.
-const OVER: f64 = 1.25;
-
 /// Seconds of the identification run.
 const IDENTIFY_S: f64 = 23.0;
 
@@ -172,31 +192,6 @@ fn identification_corners() -> Vec<(f64, f64)> {
         }
     }
     corners
-}
-
-/// Coulomb friction at the motor (N·m) read straight from the identification record: the
-/// mean torque command and speed over each constant-speed stretch (its first 0.4 s and a
-/// whole number of dither periods left out), fitted with `c·sign(ω) + B·ω`. It shares
-/// nothing with the workbench, so it can check what the workbench's model claims.
-fn plateau_coulomb(rows: &[Row]) -> f64 {
-    let corners = identification_corners();
-    let (mut w, mut tau) = (vec![], vec![]);
-    for seg in corners.windows(2) {
-        let (t0, t1) = (seg[0].0 + SETTLE_S + 0.4, seg[1].0 + SETTLE_S);
-        // whole dither periods (1/3 s)
-        let t1 = t0 + ((t1 - t0) * 3.0).floor() / 3.0;
-        let inside: Vec<&Row> = rows
-            .iter()
-            .filter(|r| r.time_s >= t0 && r.time_s < t1)
-            .collect();
-        if inside.len() < 100 {
-            continue;
-        }
-        let n = inside.len() as f64;
-        w.push(inside.iter().map(|r| r.motor_vel_rad_s).sum::<f64>() / n);
-        tau.push(inside.iter().map(|r| r.torque_cmd_nm).sum::<f64>() / n);
-    }
-    super::summary::fit_viscous_coulomb(&w, &tau).1
 }
 
 /// Runs `sc` on `model` to the end, writing its recording to `csv`; returns the rows.
@@ -365,9 +360,8 @@ pub fn run_all(
     sc.gains.damping = step.gains.damping;
     let csv = out.join(format!("identify-{label}.csv"));
     let scale = sc.scale;
-    let (id_rows, _) = run(model, sc, seed, &csv).context("the identification run")?;
+    run(model, sc, seed, &csv).context("the identification run")?;
     files.push(csv.clone());
-    let measured_coulomb = plateau_coulomb(&id_rows);
     // 2. diagnose --auto (or the model given)
     let (wb, added, model_file) = match given {
         Some(f) => (WbModel::load(f)?, vec![], f.to_path_buf()),
@@ -385,27 +379,12 @@ pub fn run_all(
             (wb, added, model_file)
         }
     };
-    // 3. compensate, if the model's friction is not above the one measured
+    // 3. compensate
     let compensation = Compensation::from_model(&wb.to_sim(), &scale, under)
         .with_context(|| format!("compensating {}", model_file.display()))?;
     let model_coulomb = compensation.friction.map_or(0.0, |f| {
         0.5 * (f.coulomb_pos + f.coulomb_neg) / scale.gear_ratio()
     });
-    if model_coulomb > OVER * measured_coulomb.max(0.0) {
-        return Err(RunFailed {
-            verdict: Verdict::Incomplete,
-            headline: format!(
-                "{}: its Coulomb friction ({} N·m at the motor) is {:.0} % of the friction the \
-             identification run measured at constant speed ({} N·m): compensating it would \
-             push the joint, not cancel a friction; refused",
-                model_file.display(),
-                eng(model_coulomb),
-                100.0 * model_coulomb / measured_coulomb,
-                eng(measured_coulomb)
-            ),
-        }
-        .into());
-    }
     // 4. the tasks, without and with
     progress("tasks without compensation");
     let (before, rows_b) = tasks(model, None, seed, out, "before", &mut files)?;
@@ -424,7 +403,6 @@ pub fn run_all(
     Ok(Outcome {
         before,
         after,
-        measured_coulomb,
         model_coulomb,
         hold,
         compensation,

@@ -368,6 +368,14 @@ impl GainSet {
 /// Runs the card's own configuration check (conversion + §2.9 stability guard) on the card
 /// defaults overlaid with `entries`, for `mode`. `Err` says what the card would refuse.
 pub fn check(entries: &[(u16, i32)], mode: Mode) -> Result<()> {
+    if entries.len() > p::STAGING_CAPACITY {
+        return Err(anyhow!(
+            "the gain set has {} parameters and the card stages {} at a time: use a shorter \
+             ripple table",
+            entries.len(),
+            p::STAGING_CAPACITY
+        ));
+    }
     for &(id, v) in entries {
         if let Err(s) = controller::card::store::check_write(id, v, false) {
             let name = p::lookup(id).map(|d| d.name).unwrap_or("?");
