@@ -193,39 +193,28 @@ fn compensate_refuses_an_unusable_model_and_a_bad_under() {
     let d = dir("compensate", "refuse");
     let f = d.join("m.toml");
     std::fs::write(&f, "name = \"x\"\n[effects.coulomb]\ntorque = 500.0\n").unwrap();
-    let o = hil()
-        .args([
-            "demo",
-            "--scenario",
-            "step",
-            "--preset",
-            "harmonic-drive-60",
-            "--quiet",
-        ])
-        .arg("--out")
-        .arg(&d)
-        .arg("--compensate")
-        .arg(&f)
-        .output()
-        .unwrap();
+    let step = |extra: &[&str]| {
+        hil()
+            .args([
+                "demo",
+                "--scenario",
+                "step",
+                "--preset",
+                "harmonic-drive-60",
+            ])
+            .arg("--quiet")
+            .arg("--out")
+            .arg(&d)
+            .arg("--compensate")
+            .arg(&f)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = step(&[]);
     assert!(!o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("more than the motor's"), "{}", text(&o));
-    let o = hil()
-        .args([
-            "demo",
-            "--scenario",
-            "step",
-            "--preset",
-            "harmonic-drive-60",
-            "--quiet",
-        ])
-        .arg("--out")
-        .arg(&d)
-        .arg("--compensate")
-        .arg(&f)
-        .args(["--under", "1.5"])
-        .output()
-        .unwrap();
+    let o = step(&["--under", "1.5"]);
     assert!(
         !o.status.success() && text(&o).contains("--under"),
         "{}",

@@ -251,7 +251,7 @@ impl Compensation {
             + ff.ripple.map_or(0.0, |r| {
                 r.table[..r.len].iter().fold(0.0f64, |m, v| m.max(v.abs()))
             });
-        let max_out = model_max_torque(model) * nj;
+        let max_out = model.motor.max_torque.value * nj;
         if peak > max_out {
             bail!(
                 "the compensation asks for up to {} N·m at the output before any control, more \
@@ -290,11 +290,6 @@ impl Compensation {
             f.viscous = cap;
         }
     }
-}
-
-/// The motor's torque in the model (its file's `max_torque`), at the motor.
-fn model_max_torque(model: &Model) -> f64 {
-    model.motor.max_torque.value
 }
 
 /// Numbers in messages: four significant digits.
@@ -355,7 +350,7 @@ fn ripple_table(
             fmt(t.period_rad * counts_per_rad)
         ));
     }
-    if applied.is_empty() && table.iter().all(|v| *v == 0.0) {
+    if table.iter().all(|v| *v == 0.0) {
         return Ok(None);
     }
     Ok(Some(RippleFf {

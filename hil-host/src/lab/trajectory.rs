@@ -80,15 +80,7 @@ impl Trajectory {
                 f0,
                 f1,
                 duration,
-            } => {
-                let tt = t.clamp(0.0, *duration);
-                let k = if *duration > 0.0 {
-                    (f1 - f0) / duration
-                } else {
-                    0.0
-                };
-                amplitude * (std::f64::consts::TAU * (f0 * tt + 0.5 * k * tt * tt)).sin()
-            }
+            } => amplitude * chirp(*f0, *f1, *duration, t).0.sin(),
             Trajectory::Samples(s) => interpolate(s, t),
         }
     }
@@ -115,12 +107,8 @@ impl Trajectory {
                 f1,
                 duration,
             } => {
-                if !(*duration > 0.0 && (0.0..*duration).contains(&t)) {
-                    return 0.0;
-                }
-                let k = (f1 - f0) / duration;
-                let phase = TAU * (f0 * t + 0.5 * k * t * t);
-                amplitude * TAU * (f0 + k * t) * phase.cos()
+                let (phase, rate) = chirp(*f0, *f1, *duration, t);
+                amplitude * rate * phase.cos()
             }
             Trajectory::Samples(s) => match s.iter().position(|&(ti, _)| ti > t) {
                 Some(i) if i > 0 => {
@@ -216,6 +204,24 @@ impl Trajectory {
         }
         Ok(Trajectory::Samples(out))
     }
+}
+
+/// A linear chirp's phase (rad) at `t`, held after `duration`, and its rate (rad/s; 0
+/// outside the sweep).
+fn chirp(f0: f64, f1: f64, duration: f64, t: f64) -> (f64, f64) {
+    use std::f64::consts::TAU;
+    let k = if duration > 0.0 {
+        (f1 - f0) / duration
+    } else {
+        0.0
+    };
+    let tt = t.clamp(0.0, duration);
+    let rate = if duration > 0.0 && (0.0..duration).contains(&t) {
+        TAU * (f0 + k * t)
+    } else {
+        0.0
+    };
+    (TAU * (f0 * tt + 0.5 * k * tt * tt), rate)
 }
 
 fn interpolate(s: &[(f64, f64)], t: f64) -> f64 {
