@@ -93,3 +93,36 @@ fn no_gravity_without_amplitudes() {
     let cfg = built(&[(p::TORQUE_LIMIT, 1000)]);
     assert!(cfg.joint.gravity.is_none());
 }
+
+/// Under-compensation above 1 reaches the law (the thesis's over-compensation, shown by the
+/// lab's coulomb-ff scenario): at 1.2 the friction term is 1.2× its value at 1.0.
+#[test]
+fn under_compensation_above_one_scales_the_friction_term() {
+    let friction = |u: Option<i32>| {
+        let mut e = vec![];
+        if let Some(u) = u {
+            e.extend([
+                (p::FRICTION_ENABLE, 1),
+                (p::COULOMB_POS, 2000),
+                (p::BE, 0),
+                (p::TORQUE_LIMIT, 10_000),
+                (p::FRICTION_FILTER, 65_536),
+                (p::UNDER_COMPENSATION, u),
+            ]);
+        }
+        let cfg = built(&e);
+        let m = Measurements {
+            v1: controller::fixed_math::Vel::from_num(2000),
+            ..Measurements::default()
+        };
+        JointState::new()
+            .step(&cfg.joint, &Setpoint::default(), &m)
+            .out
+            .tau
+    };
+    let none = friction(None);
+    let full = friction(Some(65_536)) - none;
+    let over = friction(Some(78_643)) - none;
+    assert_eq!(full, 2000);
+    assert!((over - 2400).abs() <= 1, "{over}");
+}

@@ -118,6 +118,12 @@ fn alpha(raw: i32) -> Alpha {
     Alpha::from_bits(bits)
 }
 
+/// A Q0.16 factor that may exceed 1 (the parameter's range bounds it) → U1F15.
+fn factor(raw: i32) -> Alpha {
+    let bits = u16::try_from(raw.clamp(0, 131_070) >> 1).unwrap_or(u16::MAX);
+    Alpha::from_bits(bits)
+}
+
 fn ms_to_us(ms: i32) -> u64 {
     u64::from(ms.unsigned_abs()).saturating_mul(1000)
 }
@@ -276,7 +282,7 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
             slope_pos: gain(p::COULOMB_POS, f64::from(s.raw(p::COULOMB_POS)) / w)?,
             slope_neg: gain(p::COULOMB_NEG, f64::from(s.raw(p::COULOMB_NEG)) / w)?,
             viscous: per_rate(p::VISCOUS_POS)?,
-            undercomp: alpha(s.raw(p::UNDER_COMPENSATION)),
+            undercomp: factor(s.raw(p::UNDER_COMPENSATION)),
             limit: torque_limit,
             alpha: alpha(s.raw(p::FRICTION_FILTER)),
         })

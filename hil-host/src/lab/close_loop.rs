@@ -236,32 +236,18 @@ pub fn tasks(
         sc
     };
     let mut f = Figures::default();
-    // Tracking at the thesis's medium stiffness, where friction shows.
-    let mut sc = Scenario::new(ScenarioKind::Identify, model)?;
-    let high = Scenario::new(ScenarioKind::Step, model)?;
-    sc.gains.stiffness = high.gains.stiffness;
-    sc.gains.damping = high.gains.damping;
-    sc.trajectory = tracking();
-    sc.duration_s = TRACK_S + 1.0;
-    sc.velocity_ff = true;
     let csv = out.join(format!("track-{tag}.csv"));
-    let (track, _) = run(model, with(sc, true), seed, &csv).context("the tracking task")?;
+    let (rms, peak, track) = track(model, seed, &csv, |sc| with(sc, true))?;
     files.push(csv);
-    let moving: Vec<&Row> = track
-        .iter()
-        .filter(|r| r.time_s > SETTLE_S + 0.05 && r.time_s < SETTLE_S + TRACK_S)
-        .collect();
-    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
-    f.tracking_rms =
-        (moving.iter().map(|r| err(r).powi(2)).sum::<f64>() / moving.len().max(1) as f64).sqrt();
-    f.peak_error = moving.iter().map(|r| err(r).abs()).fold(0.0, f64::max);
+    f.tracking_rms = rms;
+    f.peak_error = peak;
     // A step held at its end: steady-state error and the limit cycle.
-    let (steady, lc) = held_step(model, seed, &out.join(format!("step-{tag}.csv")), |sc| {
+    let held = held_step(model, seed, &out.join(format!("step-{tag}.csv")), |sc| {
         with(sc, true)
     })?;
     files.push(out.join(format!("step-{tag}.csv")));
-    f.steady_state = steady;
-    f.limit_cycle_counts = lc;
+    f.steady_state = held.steady_state;
+    f.limit_cycle_counts = held.limit_cycle_counts;
     // Stiffness emulation against the crank.
     // A spring, lightly damped (ζ ≈ 0.2 instead of the scenario's 0.7): the loop's area is
     // then the transmission's friction, not the damping asked for.
@@ -277,34 +263,86 @@ pub fn tasks(
     Ok((f, track))
 }
 
-/// The step scenario held at its end, its gains set by `with`: the mean error over the
-/// last 0.5 s (output rad) and the motor encoder's peak-to-peak there (counts).
-fn held_step(
+/// The tracking task (the constant-speed triangle at the thesis's high stiffness, the
+/// supervisor sending the reference velocity), its gains set by `with`: the tracking error's
+/// RMS and peak (output rad) while the reference moves, and the rows.
+pub(super) fn track(
     model: &Model,
     seed: u64,
     csv: &Path,
     with: impl FnOnce(Scenario) -> Scenario,
-) -> Result<(f64, f64)> {
+) -> Result<(f64, f64, Vec<Row>)> {
+    let mut sc = Scenario::new(ScenarioKind::Identify, model)?;
+    let high = Scenario::new(ScenarioKind::Step, model)?;
+    sc.gains.stiffness = high.gains.stiffness;
+    sc.gains.damping = high.gains.damping;
+    sc.trajectory = tracking();
+    sc.duration_s = TRACK_S + 1.0;
+    sc.velocity_ff = true;
+    let (rows, _) = run(model, with(sc), seed, csv).context("the tracking task")?;
+    let moving: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.time_s > SETTLE_S + 0.05 && r.time_s < SETTLE_S + TRACK_S)
+        .collect();
+    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
+    let rms =
+        (moving.iter().map(|r| err(r).powi(2)).sum::<f64>() / moving.len().max(1) as f64).sqrt();
+    let peak = moving.iter().map(|r| err(r).abs()).fold(0.0, f64::max);
+    Ok((rms, peak, rows))
+}
+
+/// The held step's figures over its last 0.5 s.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Held {
+    /// Mean error, output rad.
+    pub steady_state: f64,
+    /// The motor encoder's peak-to-peak, counts.
+    pub limit_cycle_counts: f64,
+    /// Mean power the motor puts into the mechanism, W: zero at rest, what a limit cycle
+    /// dissipates while the card sustains it.
+    pub power_w: f64,
+    /// The rows of the hold.
+    pub rows: Vec<Row>,
+}
+
+/// The step scenario held at its end, its gains set by `with`.
+pub(super) fn held_step(
+    model: &Model,
+    seed: u64,
+    csv: &Path,
+    with: impl FnOnce(Scenario) -> Scenario,
+) -> Result<Held> {
     let sc = Scenario::new(ScenarioKind::Step, model)?;
     let cpr = sc.scale.motor_cpr();
     let end = SETTLE_S + sc.duration_s;
     let (rows, _) = run(model, with(sc), seed, csv).context("the step")?;
-    let held: Vec<&Row> = rows.iter().filter(|r| r.time_s > end - 0.5).collect();
+    let held: Vec<Row> = rows.into_iter().filter(|r| r.time_s > end - 0.5).collect();
     if held.is_empty() {
-        return Ok((0.0, 0.0));
+        return Ok(Held::default());
     }
+    let n = held.len() as f64;
     let steady = held
         .iter()
         .map(|r| r.setpoint_pos_rad - r.output_pos_rad)
         .sum::<f64>()
-        / held.len() as f64;
+        / n;
     let (lo, hi) = held
         .iter()
         .map(|r| (r.motor_pos_rad / TAU * cpr).round())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
             (a.min(c), b.max(c))
         });
-    Ok((steady, hi - lo))
+    let power_w = held
+        .iter()
+        .map(|r| r.torque_cmd_nm * r.motor_vel_rad_s)
+        .sum::<f64>()
+        / n;
+    Ok(Held {
+        steady_state: steady,
+        limit_cycle_counts: hi - lo,
+        power_w,
+        rows: held,
+    })
 }
 
 /// The thesis's §5 hazard of compensating on the measured velocity at a high-gain hold:
@@ -320,7 +358,7 @@ pub fn hold_limit_cycles(
     let mut r = [(1.0, 0.0), (under, 0.0)];
     for (u, lc) in r.iter_mut() {
         let csv = out.join(format!("hold-u{u}.csv"));
-        let (_, counts) = held_step(model, seed, &csv, |mut sc| {
+        let held = held_step(model, seed, &csv, |mut sc| {
             let mut c = comp.clone();
             if let Some(f) = &mut c.friction {
                 f.under = *u;
@@ -329,7 +367,7 @@ pub fn hold_limit_cycles(
             sc.gains.friction = c.friction;
             sc
         })?;
-        *lc = counts;
+        *lc = held.limit_cycle_counts;
     }
     Ok(r)
 }
