@@ -23,6 +23,7 @@ pub mod card_node;
 pub mod close_loop;
 pub mod compensate;
 pub mod coulomb_ff;
+pub mod fidelity;
 pub mod gains;
 pub mod inject;
 pub mod mem;

@@ -316,6 +316,12 @@ impl Scenario {
         Ok(s)
     }
 
+    /// The stiffness crank's deflection amplitude, output rad (its period kept): a stiffer
+    /// spring is cranked less far so that its torque stays within the motor's.
+    pub fn set_crank_amplitude(&mut self, amplitude: f64) {
+        self.crank_speed = amplitude / (0.25 * self.crank_period);
+    }
+
     /// What the output touches at time `t` (s since the run began).
     pub fn environment(&self, t: f64) -> Environment {
         let ts = t - SETTLE_S;
