@@ -78,6 +78,7 @@ fn samples() -> Vec<(Setpoint, Measurements)> {
                 Setpoint {
                     x_d: (k as i64 * 13) % 3000,
                     tau_d: 0,
+                    ..Default::default()
                 },
                 Measurements {
                     x1: x,

@@ -199,6 +199,7 @@ fn pd_step_settles() {
         |_| Setpoint {
             x_d: target,
             tau_d: 0,
+            ..Default::default()
         },
         |k, _, m, _| {
             peak = peak.max(m.x1);
@@ -234,7 +235,11 @@ fn pid_removes_constant_load_error() {
             &mut c,
             &cfg,
             3000,
-            |_| Setpoint { x_d: 0, tau_d: 0 },
+            |_| Setpoint {
+                x_d: 0,
+                tau_d: 0,
+                ..Default::default()
+            },
             |_, _, _, _| {},
         );
         let mut e_sum = 0.0;
@@ -243,7 +248,11 @@ fn pid_removes_constant_load_error() {
             &mut c,
             &cfg,
             500,
-            |_| Setpoint { x_d: 0, tau_d: 0 },
+            |_| Setpoint {
+                x_d: 0,
+                tau_d: 0,
+                ..Default::default()
+            },
             |_, _, m, _| e_sum += m.x1 as f64,
         );
         errs.push(e_sum / 500.0);
@@ -297,6 +306,7 @@ fn force_p_and_pi_track_against_a_spring() {
         let sp = Setpoint {
             x_d: 0,
             tau_d: (tau_d / MOTOR_TORQUE_NM_PER_LSB) as i32,
+            ..Default::default()
         };
         run(&mut p, &mut c, &cfg, 2000, |_| sp, |_, _, _, _| {});
         let mut s = 0.0;
@@ -336,6 +346,7 @@ fn input_velocity_damping_calms_force_p() {
         let sp = Setpoint {
             x_d: 0,
             tau_d: 1000,
+            ..Default::default()
         };
         let fin = 0.1 * kp / (1.0 + kp);
         let mut s = 0.0;
@@ -400,6 +411,7 @@ fn force_rate_damping_calms_force_p() {
         let sp = Setpoint {
             x_d: 0,
             tau_d: 1000,
+            ..Default::default()
         };
         let fin = 0.1 * kp / (1.0 + kp);
         let mut s = 0.0;
@@ -453,6 +465,7 @@ fn impedance_achieves_desired_stiffness() {
         let sp = Setpoint {
             x_d: rad2counts(xd),
             tau_d: 0,
+            ..Default::default()
         };
         run(&mut p, &mut c, &cfg, 3000, |_| sp, |_, _, _, _| {});
         let x = counts2rad(c.unwrap.position());
@@ -507,6 +520,7 @@ fn friction_comp_reduces_tracking_error() {
             |k| Setpoint {
                 x_d: rad2counts(traj(k)),
                 tau_d: 0,
+                ..Default::default()
             },
             |_, p, _, _| th.push(p.th),
         );
@@ -559,6 +573,7 @@ fn ripple_comp_cancels_known_ripple() {
             |k| Setpoint {
                 x_d: rad2counts(speed * k as f64 * T),
                 tau_d: 0,
+                ..Default::default()
             },
             |k, p, _, _| {
                 if k >= 1000 {
@@ -652,6 +667,7 @@ fn impedance_compensation_reduces_torque_deficit() {
             |k| Setpoint {
                 x_d: rad2counts(xd(k)),
                 tau_d: 0,
+                ..Default::default()
             },
             |k, p, m, _| {
                 if k >= 4000 {
@@ -729,6 +745,7 @@ fn noncolocated_pd_step_on_two_mass_plant() {
                 &Setpoint {
                     x_d: target,
                     tau_d: 0,
+                    ..Default::default()
                 },
                 &m,
             )
@@ -749,4 +766,111 @@ fn noncolocated_pd_step_on_two_mass_plant() {
         (last - target).abs() <= 20,
         "within 20 of 2^16 cpr counts (0.11°)"
     );
+}
+
+/// Velocity PI (`Mode::Velocity`) on the rigid rotor with Coulomb friction and a constant
+/// load: Kv for a 20 Hz velocity loop, Ki = Kv·ω/4. The integrator takes the steady error
+/// against load and friction away (P alone leaves (load + friction)/Kv), and its clamp bounds
+/// what a long stall winds into it (the overshoot after release).
+#[test]
+fn velocity_pi_tracks_against_load_and_does_not_wind_up() {
+    let w = TAU * 20.0;
+    let kv = I_ROT * w; // N·m·s/rad
+    let ki = kv * w / 4.0; // N·m/rad
+    let s = scale();
+    let pos = units::position_config(
+        &s,
+        &units::PositionSi {
+            ke: ki,
+            be: kv,
+            ki: 0.0,
+            i_limit_nm: 0.5,
+            tau_max_nm: 2.0,
+            feedback: Feedback::Colocated,
+        },
+    )
+    .unwrap();
+    // Ki·T per (1/16 count/s) per tick in 2⁻¹⁶ torque LSB, as the card converts Ke.
+    let ki_t = units::gain_from_f64("ki_t", pos.pid.kp.to_f64() * 4096.0 * T).unwrap();
+    let cfg = |with_i: bool| JointConfig {
+        mode: Mode::Velocity(VelocityConfig {
+            pid: PidConfig {
+                kp: pos.pid.kd,
+                kd: controller::fixed_math::Gain::ZERO,
+                ki_t: if with_i {
+                    ki_t
+                } else {
+                    controller::fixed_math::Gain::ZERO
+                },
+                i_limit: if with_i { 5000 } else { 0 },
+                tau_max: 20000,
+            },
+        }),
+        tau_max: 20000,
+        ..JointConfig::default()
+    };
+    let v_ref = 20.0; // rad/s
+    let sp = Setpoint {
+        v_d: Vel::from_num(v_ref * 2304.0 / TAU),
+        ..Default::default()
+    };
+    let steady = |with_i: bool| {
+        let mut p = Plant::new(I_ROT);
+        p.coul_pos = 0.05;
+        p.coul_neg = 0.05;
+        p.ext = -0.1;
+        let mut c = Card::new(2304, 50.0);
+        let (mut sum, mut n) = (0.0, 0);
+        run(
+            &mut p,
+            &mut c,
+            &cfg(with_i),
+            1500,
+            |_| sp,
+            |k, p, _, _| {
+                if k >= 1000 {
+                    sum += p.w;
+                    n += 1;
+                }
+            },
+        );
+        sum / n as f64
+    };
+    let (p_only, pi) = (steady(false), steady(true));
+    println!("velocity loop at {v_ref} rad/s: P only {p_only:.3}, PI {pi:.3} rad/s");
+    assert!((pi - v_ref).abs() < 0.02 * v_ref, "PI {pi}");
+    let p_err = 0.15 / kv; // (load + friction) / Kv
+    assert!(
+        (v_ref - p_only - p_err).abs() < 0.3 * p_err,
+        "P only {p_only}"
+    );
+    // Held for 1 s by a brake (static friction above the torque limit), then released: the
+    // overshoot with the integrator clamped at 0.5 N·m, and with it clamped only by the
+    // output limit.
+    let stall = |i_limit: i32| {
+        let mut c = cfg(true);
+        if let Mode::Velocity(v) = &mut c.mode {
+            v.pid.i_limit = i_limit;
+        }
+        let mut p = Plant::new(I_ROT);
+        p.coul_pos = 3.0;
+        p.coul_neg = 3.0;
+        let mut card = Card::new(2304, 50.0);
+        let mut peak: f64 = 0.0;
+        for k in 0..2500 {
+            if k == 1000 {
+                p.coul_pos = 0.05;
+                p.coul_neg = 0.05;
+            }
+            let (tau, _) = card.tick(&p, &c, &sp);
+            peak = peak.max(p.w);
+            p.step(tau);
+        }
+        peak
+    };
+    let (peak, unclamped) = (stall(5000), stall(20000));
+    println!("after a 1 s stall: peak {peak:.2} rad/s clamped, {unclamped:.2} unclamped");
+    // The overshoot grows with what the integrator holds at release: a quarter of the
+    // output limit's (0.5 of 2 N·m) must overshoot well under the unclamped run.
+    assert!(peak < 0.5 * unclamped, "{peak} {unclamped}");
 }

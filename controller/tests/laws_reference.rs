@@ -593,7 +593,15 @@ fn joint_pipeline_tracks_f64() {
                     v2: Vel::ZERO,
                     tau_env: te,
                 };
-                let o = st.step(&cfg, &Setpoint { x_d: xd, tau_d: 0 }, &m);
+                let o = st.step(
+                    &cfg,
+                    &Setpoint {
+                        x_d: xd,
+                        tau_d: 0,
+                        ..Default::default()
+                    },
+                    &m,
+                );
                 let e = pos_err(xd, x);
                 let mut y = rp.step(&pid, e, v as f64);
                 y += -g(b1e) * v as f64;
@@ -658,7 +666,7 @@ proptest! {
         let mut prev = 0;
         for (k, (xd, x, v, te, td)) in seq.into_iter().enumerate() {
             let m = Measurements { x1: x, v1: Vel::from_bits(v), x2: xd ^ x, v2: Vel::from_bits(te), tau_env: te };
-            let sp = Setpoint { x_d: xd, tau_d: td };
+            let sp = Setpoint { x_d: xd, tau_d: td, ..Default::default() };
             if k % 7 == 3 {
                 st.init_bumpless(&cfg, prev, &sp, &m);
             }
@@ -708,7 +716,11 @@ fn saturation_is_flagged() {
     };
     let o = JointState::new().step(
         &cfg,
-        &Setpoint { x_d: 50, tau_d: 0 },
+        &Setpoint {
+            x_d: 50,
+            tau_d: 0,
+            ..Default::default()
+        },
         &Measurements::default(),
     );
     assert_eq!(o.out.tau, 1200);
@@ -756,6 +768,7 @@ fn bumpless_gain_commit_pd_and_pid() {
     let sp = Setpoint {
         x_d: 1000,
         tau_d: 0,
+        ..Default::default()
     };
     let m = Measurements {
         x1: 800,
@@ -862,6 +875,7 @@ fn bumpless_mode_switches() {
     let sp = Setpoint {
         x_d: 1000,
         tau_d: 2500,
+        ..Default::default()
     };
     let m = Measurements {
         x1: 700,
@@ -915,7 +929,7 @@ proptest! {
                                  warm in 0usize..50) {
         let a = pos_cfg(ke1, be1, if ki1 < 1.0 { 0.0 } else { ki1 });
         let b = pos_cfg(ke2, be2, if ki2 < 1.0 { 0.0 } else { ki2 });
-        let sp = Setpoint { x_d: xd, tau_d: 0 };
+        let sp = Setpoint { x_d: xd, tau_d: 0, ..Default::default() };
         let m = Measurements { x1: x, v1: Vel::from_bits(v), ..Default::default() };
         let mut st = JointState::new();
         let mut prev = 0;

@@ -133,6 +133,7 @@ fn sample(inputs: Inputs, k: usize) -> (Setpoint, Measurements) {
                 Setpoint {
                     x_d: (k * 13) % 3000,
                     tau_d: 0,
+                    ..Default::default()
                 },
                 Measurements {
                     x1: x,
@@ -149,6 +150,7 @@ fn sample(inputs: Inputs, k: usize) -> (Setpoint, Measurements) {
                 Setpoint {
                     x_d,
                     tau_d: 5000 + (k % 7) as i32 * 10,
+                    ..Default::default()
                 },
                 Measurements {
                     x1: x_d + (k % 9) - 4,

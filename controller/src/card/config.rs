@@ -14,7 +14,7 @@ use crate::fixed_math::{Alpha, Gain, Torque};
 use crate::laws::{
     DamperConfig, Feedback, ForceConfig, ForceDamping, FrictionConfig, Gravity, ImpCompConfig,
     ImpedanceConfig, InputDamping, JointConfig, Mode as LawMode, PidConfig, PositionConfig,
-    RippleTable,
+    RippleTable, VelocityConfig,
 };
 use crate::proto::params::{self as p, WatchdogReaction};
 use crate::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_IN_MOTOR_LSB};
@@ -248,6 +248,16 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
             LawMode::Position(position(Gain::ZERO))
         }
         Some(Mode::PositionPid) => LawMode::Position(position(ki_t)),
+        // Ki·T per (1/16 count/s) per tick in 2⁻¹⁶ torque LSB: Ke·(1/16)·T·2¹⁶.
+        Some(Mode::Velocity) => LawMode::Velocity(VelocityConfig {
+            pid: PidConfig {
+                kp: be,
+                kd: Gain::ZERO,
+                ki_t: gain(p::KE, q16(s.raw(p::KE)) * 4096.0 / rate)?,
+                i_limit,
+                tau_max: torque_limit,
+            },
+        }),
         Some(Mode::Damper) => LawMode::Damper(DamperConfig {
             b: be,
             tau_max: torque_limit,

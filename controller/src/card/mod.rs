@@ -832,7 +832,13 @@ impl Card {
             x_d: here.saturating_add(delta),
             tau_d: i32::from(self.tau_d_out)
                 .saturating_mul(crate::proto::scale::OUTPUT_TORQUE_IN_MOTOR_LSB),
+            v_d: self.velocity_setpoint(),
         }
+    }
+
+    /// The setpoint's velocity_ff (8 counts/s per LSB) as a Q28.4 counts/s velocity.
+    fn velocity_setpoint(&self) -> Vel {
+        Vel::from_bits(i32::from(self.velocity_ff).saturating_mul(128))
     }
 
     /// One control period: the `Sensor` frame of tick `seq` arrived at `now_us`.
@@ -925,16 +931,24 @@ impl Card {
                 }
                 let out = self.joint.step(&self.cfg.joint, &sp, &self.last_meas);
                 flags |= out.out.flags;
-                let vff = Vel::from_bits(i32::from(self.velocity_ff).saturating_mul(128));
-                let ff = match self.mode {
-                    Some(Mode::TorquePassthrough) => i64::from(self.torque_ff),
+                let vff = self.velocity_setpoint();
+                // The modes that follow a motion setpoint take its torque feed-forward and
+                // the friction law on its velocity; the position-type ones also take the
+                // velocity through their damping gain (the velocity law has it in its error).
+                let follows = matches!(
+                    self.mode,
                     Some(
                         Mode::PositionPdColocated
-                        | Mode::PositionPdNonColocated
-                        | Mode::PositionPid
-                        | Mode::ImpedanceColocated
-                        | Mode::ImpedanceNonColocated,
-                    ) => {
+                            | Mode::PositionPdNonColocated
+                            | Mode::PositionPid
+                            | Mode::ImpedanceColocated
+                            | Mode::ImpedanceNonColocated
+                            | Mode::Velocity
+                    )
+                );
+                let ff = match self.mode {
+                    Some(Mode::TorquePassthrough) => i64::from(self.torque_ff),
+                    _ if follows => {
                         let friction = match &self.cfg.joint.friction {
                             Some(f) if self.cfg.joint.friction_on_setpoint => {
                                 let o = self.ref_friction.step(f, vff);
@@ -943,8 +957,13 @@ impl Card {
                             }
                             _ => 0,
                         };
+                        let damping_ff = if self.mode == Some(Mode::Velocity) {
+                            0
+                        } else {
+                            self.cfg.velocity_ff_gain.apply(vff.to_bits())
+                        };
                         i64::from(self.torque_ff)
-                            .saturating_add(self.cfg.velocity_ff_gain.apply(vff.to_bits()))
+                            .saturating_add(damping_ff)
                             .saturating_add(friction)
                     }
                     _ => 0,

@@ -26,6 +26,7 @@ use super::impcomp::{ImpComp, ImpCompConfig};
 use super::impedance::{ImpedanceConfig, ImpedanceLaw};
 use super::position::{Feedback, PositionConfig, PositionLaw};
 use super::ripple::RippleTable;
+use super::velocity::{VelocityConfig, VelocityLaw};
 use crate::fixed_math::{clamp_sym, sat_i32, Counts, Flags, Output, Torque, TorqueCmd, Vel};
 
 /// The main control law.
@@ -43,6 +44,8 @@ pub enum Mode {
     Force(ForceConfig),
     /// Impedance (§2.8).
     Impedance(ImpedanceConfig),
+    /// Velocity PI on the motor encoder against the setpoint's velocity.
+    Velocity(VelocityConfig),
 }
 
 /// Discriminant of [`Mode`] (for telemetry and the runtime's switch logic).
@@ -60,6 +63,8 @@ pub enum ModeKind {
     Force,
     /// [`Mode::Impedance`]
     Impedance,
+    /// [`Mode::Velocity`]
+    Velocity,
 }
 
 impl Mode {
@@ -71,6 +76,7 @@ impl Mode {
             Mode::Damper(_) => ModeKind::Damper,
             Mode::Force(_) => ModeKind::Force,
             Mode::Impedance(_) => ModeKind::Impedance,
+            Mode::Velocity(_) => ModeKind::Velocity,
         }
     }
     /// Encoder the position-type laws feed back (colocated for the others).
@@ -135,6 +141,8 @@ pub struct Setpoint {
     pub x_d: Counts,
     /// Desired output torque (force modes), sensor LSB.
     pub tau_d: Torque,
+    /// Desired motor velocity (velocity mode).
+    pub v_d: Vel,
 }
 
 /// Measured quantities for one tick.
@@ -161,6 +169,8 @@ pub struct JointState {
     pub position: PositionLaw,
     /// Force law state.
     pub force: ForceLaw,
+    /// Velocity PI state.
+    pub velocity: VelocityLaw,
     /// Impedance compensation state.
     pub imp_comp: ImpComp,
     /// Friction compensation state (its velocity low-pass).
@@ -195,6 +205,7 @@ impl JointState {
                 pid: super::pid::PidState::ZERO,
             },
             force: ForceLaw::NEW,
+            velocity: VelocityLaw::NEW,
             imp_comp: ImpComp::NEW,
             friction: FrictionComp::NEW,
             offset: 0,
@@ -228,6 +239,7 @@ impl JointState {
             Mode::Damper(c) => DamperLaw.step(c, m.v1),
             Mode::Force(c) => self.force.step(c, sp.tau_d, m.tau_env, m.v1),
             Mode::Impedance(c) => ImpedanceLaw.step(c, sp.x_d, x, v, m.tau_env),
+            Mode::Velocity(c) => self.velocity.step(c, sp.v_d, m.v1),
         };
         let mut flags = law.flags;
         // Every term but the damping is an i32; the damping (|·| < 2⁶²) is clamped to ±2⁴⁰,
@@ -314,6 +326,9 @@ impl JointState {
             if kind != ModeKind::Force {
                 self.force.pid.reset();
             }
+            if kind != ModeKind::Velocity {
+                self.velocity.pid.reset();
+            }
         }
         self.offset = 0;
         let mut trial = *self;
@@ -325,6 +340,9 @@ impl JointState {
             }
             Mode::Force(c) if c.pid.has_integrator() => {
                 self.force.pid.absorb(&c.pid, delta);
+            }
+            Mode::Velocity(c) if c.pid.has_integrator() => {
+                self.velocity.pid.absorb(&c.pid, delta);
             }
             _ => {}
         }

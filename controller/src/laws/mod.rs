@@ -32,7 +32,7 @@
 //! let x1 = unwrap.update(0xFFFF_FFF0);           // raw 32-bit counter
 //! let (v1, _flags) = obs.step(&obs_cfg, x1);
 //! let m = Measurements { x1, v1, ..Measurements::default() };
-//! let sp = Setpoint { x_d: 100, tau_d: 0 };
+//! let sp = Setpoint { x_d: 100, ..Setpoint::default() };
 //! let out = st.step(&cfg, &sp, &m);
 //! let cmd: i16 = out.command();
 //! assert!(cmd > 0 && out.out.flags.is_empty());
@@ -54,6 +54,7 @@ pub mod joint;
 pub mod pid;
 pub mod position;
 pub mod ripple;
+pub mod velocity;
 
 pub use damping::{DamperConfig, DamperLaw, InputDamping};
 pub use force::{ForceConfig, ForceDamping, ForceLaw};
@@ -65,3 +66,4 @@ pub use joint::{JointConfig, JointOutput, JointState, Measurements, Mode, ModeKi
 pub use pid::{PidConfig, PidState};
 pub use position::{Feedback, PositionConfig, PositionLaw};
 pub use ripple::{RippleError, RippleTable, RIPPLE_MAX};
+pub use velocity::{VelocityConfig, VelocityLaw};

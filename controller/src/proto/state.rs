@@ -54,6 +54,9 @@ wire_enum! {
         ImpedanceColocated = 9,
         /// τm = Ke(xD − x2) − Be·ẋ2 + Km·τenv (non-colocated impedance, Eqn 3.3.19).
         ImpedanceNonColocated = 10,
+        /// τm = Be·(vD − ẋ1) + Ke·Σ(vD − ẋ1)·T with anti-windup clamp `integrator_limit`:
+        /// velocity PI on the motor encoder, vD the setpoint's velocity_ff.
+        Velocity = 11,
     }
 }
 
