@@ -38,6 +38,7 @@ pub mod summary;
 pub mod supervisor;
 pub mod threaded;
 pub mod trajectory;
+pub mod velocity_pulse;
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
