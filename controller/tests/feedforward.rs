@@ -126,3 +126,29 @@ fn under_compensation_above_one_scales_the_friction_term() {
     assert_eq!(full, 2000);
     assert!((over - 2400).abs() <= 1, "{over}");
 }
+
+/// The velocity mode built from the card's parameters, against its definition: with Be as Kv
+/// and Ke as Ki, a constant velocity error e gives τ = Be·e + Ke·(e·t) — here Be = 10 τLSB
+/// per count/tick and Ke = 1 τLSB per count, e = 1000 counts/s = 1 count per 1 ms tick, so
+/// tick n commands 10 + n (±1 for where the integrator's first step lands).
+#[test]
+fn velocity_mode_is_kv_times_the_error_plus_ki_times_its_integral() {
+    let mut s = ParamStore::new();
+    s.apply(&[
+        (p::KE, 65_536),
+        (p::BE, 10 * 65_536),
+        (p::INTEGRATOR_LIMIT, 10_000),
+        (p::TORQUE_LIMIT, 20_000),
+    ]);
+    let cfg = config::build(&s, Some(controller::proto::Mode::Velocity)).expect("a valid set");
+    let m = Measurements::default();
+    let mut st = JointState::new();
+    let sp = Setpoint {
+        v_d: controller::fixed_math::Vel::from_num(1000),
+        ..Setpoint::default()
+    };
+    for n in 1..=200 {
+        let tau = st.step(&cfg.joint, &sp, &m).out.tau;
+        assert!((tau - (10 + n)).abs() <= 1, "tick {n}: {tau}");
+    }
+}

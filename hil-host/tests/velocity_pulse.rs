@@ -68,6 +68,7 @@ fn the_scenario_prints_json_and_writes_the_plot() {
         .output()
         .unwrap();
     let j: serde_json::Value = serde_json::from_str(&ok(o)).unwrap();
-    assert!(j["pulse"]["start"]["delay_s"].as_f64().unwrap() > 0.0);
+    assert_eq!(j["pulse"]["label"], "cyclo-29");
+    assert!(j["pulse"]["backlash_rad"].as_f64().unwrap() > 0.0);
     assert!(out.join("velocity-pulse-cyclo-29.png").exists());
 }

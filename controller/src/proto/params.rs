@@ -177,7 +177,7 @@ params! {
     COULOMB_NEG = 0x0402, "coulomb_neg", Any, "τLSB (τc⁻ magnitude, applied for v < 0)", 0, TQ, 0;
     VISCOUS_POS = 0x0403, "viscous_pos", Any, "Q16.16 τLSB per (count/tick)", 0, MAX, 0;
     VISCOUS_NEG = 0x0404, "viscous_neg", Any, "Q16.16 τLSB per (count/tick)", 0, MAX, 0;
-    UNDER_COMPENSATION = 0x0405, "under_compensation", Any, "Q0.16 factor (65536 = 1.0)", 0, 98_304, 58_982;
+    UNDER_COMPENSATION = 0x0405, "under_compensation", Any, "factor × 65536 (65536 = 1.0)", 0, 98_304, 58_982;
     FRICTION_DEADBAND = 0x0406, "friction_deadband", Any, "counts/s", 0, MAX, 1_000;
     FRICTION_SAME_SIGN_TICKS = 0x0407, "friction_same_sign_ticks", Any, "ticks", 1, 1_000, 3;
     FRICTION_FILTER = 0x0408, "friction_filter", Any, "Q0.16 low-pass α of the velocity it acts on (65536 = none)", 1, 65536, 65536;

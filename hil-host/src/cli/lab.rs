@@ -337,14 +337,16 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     if a.scenario == "compensate" {
         return compensate_demo(&a, &model);
     }
-    if a.scenario == "coulomb-ff" {
-        return coulomb_ff_demo(&a, &model);
-    }
-    if a.scenario == "fidelity" {
-        return fidelity_demo(&a);
-    }
-    if a.scenario == "velocity-pulse" {
-        return velocity_pulse_demo(&a, &model);
+    if matches!(
+        a.scenario.as_str(),
+        "coulomb-ff" | "fidelity" | "velocity-pulse"
+    ) {
+        experiment_flags(&a)?;
+        return match a.scenario.as_str() {
+            "coulomb-ff" => coulomb_ff_demo(&a, &model),
+            "fidelity" => fidelity_demo(&a),
+            _ => velocity_pulse_demo(&a, &model),
+        };
     }
     a.report.check()?;
     check_seconds(a.seconds)?;
@@ -526,6 +528,35 @@ fn compensate_demo(a: &DemoArgs, model: &Model) -> Result<()> {
             headline,
         }
         .into());
+    }
+    Ok(())
+}
+
+/// The thesis's experiments set their own laws, length and card: a flag they would ignore
+/// is refused by name.
+fn experiment_flags(a: &DemoArgs) -> Result<()> {
+    let ignored = [
+        ("--seconds", a.seconds.is_some()),
+        ("--inject", !a.inject.is_empty()),
+        ("--recover", a.recover),
+        ("--sensor-timeout-us", a.sensor_timeout_us.is_some()),
+        ("--gains", a.laws.gains.is_some()),
+        ("--compensate", a.laws.compensate.is_some()),
+        ("--under", a.laws.under != compensate::DEFAULT_UNDER),
+        ("--html", a.html.html.is_some()),
+        ("--card", a.card != CardChoice::Host),
+        (
+            "--preset/--model",
+            a.scenario == "fidelity"
+                && (a.plant.model.is_some() || a.plant.preset != "whoi-cable-30"),
+        ),
+    ];
+    if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
+        bail!(
+            "{flag} does not apply to `--scenario {}`: the experiment sets its own (see \
+             docs/design/thesis-experiments.md)",
+            a.scenario
+        );
     }
     Ok(())
 }

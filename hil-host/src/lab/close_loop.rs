@@ -195,7 +195,7 @@ fn identification_corners() -> Vec<(f64, f64)> {
 }
 
 /// Runs `sc` on `model` to the end, writing its recording to `csv`; returns the rows.
-fn run(model: &Model, sc: Scenario, seed: u64, csv: &Path) -> Result<(Vec<Row>, Lab)> {
+pub(super) fn run(model: &Model, sc: Scenario, seed: u64, csv: &Path) -> Result<(Vec<Row>, Lab)> {
     let opts = LabOptions {
         seed,
         ..LabOptions::default()
@@ -279,10 +279,11 @@ pub(super) fn track(
     sc.trajectory = tracking();
     sc.duration_s = TRACK_S + 1.0;
     sc.velocity_ff = true;
-    let (rows, _) = run(model, with(sc), seed, csv).context("the tracking task")?;
+    let (rows, lab) = run(model, with(sc), seed, csv).context("the tracking task")?;
+    let t0 = lab.supervisor.trajectory_start_s().unwrap_or(0.0);
     let moving: Vec<&Row> = rows
         .iter()
-        .filter(|r| r.time_s > SETTLE_S + 0.05 && r.time_s < SETTLE_S + TRACK_S)
+        .filter(|r| r.time_s > t0 + 0.05 && r.time_s < t0 + TRACK_S)
         .collect();
     let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
     let rms =

@@ -27,7 +27,8 @@ pub struct UnderRow {
     pub under: f64,
     /// The held step's motor encoder peak-to-peak over its last 0.5 s, counts.
     pub limit_cycle_counts: f64,
-    /// The same at the output, degrees (counts ÷ counts per rev ÷ N).
+    /// The same referred to the output, degrees (counts ÷ counts per rev ÷ N): the motor's
+    /// motion, not the output's own.
     pub limit_cycle_deg: f64,
     /// Mean power the motor puts into the held joint, W: zero at rest; while a cycle lasts,
     /// what the card feeds it.

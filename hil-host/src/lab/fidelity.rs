@@ -10,9 +10,7 @@ use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use rayon::prelude::*;
 
-use super::recorder::{read_rows, Row};
 use super::scenario::{Scenario, ScenarioKind, SETTLE_S};
-use super::{Lab, LabOptions};
 
 /// The thesis's six transmissions, in its table's order.
 pub const SIX: [&str; 6] = [
@@ -86,20 +84,13 @@ fn one(preset: &str, k_deg: f64, seed: u64, out: &Path) -> Result<Cell> {
     sc.gains.stiffness = k;
     sc.set_crank_amplitude(amplitude(k));
     let csv = out.join(format!("{preset}-k{k_deg}.csv"));
-    let opts = LabOptions {
-        seed,
-        ..LabOptions::default()
-    };
-    let mut lab = Lab::new(&model, sc, &opts)?;
-    lab.recorder.write_csv(&csv)?;
-    lab.run(|_, _| {})
+    let (rows, mut lab) = super::close_loop::run(&model, sc, seed, &csv)
         .with_context(|| format!("{preset} at {k_deg} N·m/deg"))?;
     let s = lab.summary()?;
     let get = |name: &str| {
         s.get(name)
             .ok_or_else(|| anyhow!("the stiffness summary has no `{name}`"))
     };
-    let rows = read_rows(&csv)?.collect::<Result<Vec<Row>>>()?;
     let points = rows
         .iter()
         .filter(|r| r.time_s > SETTLE_S + 0.3)

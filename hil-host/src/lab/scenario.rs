@@ -318,8 +318,11 @@ impl Scenario {
 
     /// The stiffness crank's deflection amplitude, output rad (its period kept): a stiffer
     /// spring is cranked less far so that its torque stays within the motor's.
+    /// Scenarios without a crank are left as they are.
     pub fn set_crank_amplitude(&mut self, amplitude: f64) {
-        self.crank_speed = amplitude / (0.25 * self.crank_period);
+        if self.crank_period > 0.0 {
+            self.crank_speed = amplitude / (0.25 * self.crank_period);
+        }
     }
 
     /// What the output touches at time `t` (s since the run began).

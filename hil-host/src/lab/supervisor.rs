@@ -213,6 +213,12 @@ impl Supervisor {
         self.velocity_ff = on;
     }
 
+    /// When the trajectory's time 0 was, in the run's seconds (the tick the card was
+    /// enabled on; None before). A recording's `time_s` is the run's.
+    pub fn trajectory_start_s(&self) -> Option<f64> {
+        self.started_at.map(|t| t as f64 * 1e-3)
+    }
+
     /// Current phase.
     pub fn phase(&self) -> Phase {
         self.phase

@@ -14,16 +14,15 @@ use controller::proto::Mode;
 use plotters::prelude::*;
 use sim_plant::Model;
 
-use super::recorder::{read_rows, Row};
+use super::recorder::Row;
 use super::scenario::{Scenario, ScenarioKind};
 use super::trajectory::Trajectory;
-use super::{Lab, LabOptions};
 
 /// The pulse's speed, output rad/s (negative, as the paper's).
 pub const PULSE_SPEED: f64 = -0.5;
 /// The pulse's length, s.
 pub const PULSE_S: f64 = 1.0;
-/// Rest before the pulse, s (after the lab's settling).
+/// Rest before the pulse, s (from the trajectory's start, when the card is enabled).
 const LEAD_S: f64 = 0.3;
 /// Time after the pulse's end, s.
 const TAIL_S: f64 = 0.7;
@@ -95,21 +94,14 @@ pub fn run(model: &Model, label: &str, seed: u64, out: &Path) -> Result<Pulse> {
     let sc = scenario(model)?;
     let n = sc.scale.gear_ratio();
     let csv = out.join(format!("velocity-pulse-{label}.csv"));
-    let opts = LabOptions {
-        seed,
-        ..LabOptions::default()
-    };
-    let mut lab = Lab::new(model, sc, &opts)?;
-    lab.recorder.write_csv(&csv)?;
-    lab.run(|_, _| {}).context("the velocity pulse")?;
-    let rows = read_rows(&csv)?.collect::<Result<Vec<Row>>>()?;
-    // The trajectory's time is the run's.
-    let t_start = LEAD_S;
+    let (rows, lab) =
+        super::close_loop::run(model, sc, seed, &csv).context("the velocity pulse")?;
+    let t_start = lab.supervisor.trajectory_start_s().unwrap_or(0.0) + LEAD_S;
     let t_stop = t_start + PULSE_S;
     let load = |r: &Row| r.output_vel_rad_s;
     let motor = |r: &Row| r.motor_vel_rad_s / n;
     let png = out.join(format!("velocity-pulse-{label}.png"));
-    plot(&png, label, &rows, n)?;
+    plot(&png, label, &rows, n, t_start)?;
     let held: Vec<f64> = rows
         .iter()
         .filter(|r| r.time_s >= t_start + 0.5 * PULSE_S && r.time_s < t_stop)
@@ -150,11 +142,12 @@ fn response(
     let end = window.last().map_or(0.0, |w| w.0);
     let delay_s = window.iter().find(|w| w.1 >= 0.5).map_or(end, |w| w.0);
     let overshoot = window.iter().map(|w| w.1 - 1.0).fold(0.0, f64::max);
-    let settle_s = window
-        .iter()
-        .rposition(|w| (w.1 - 1.0).abs() > 0.1)
-        .and_then(|i| window.get(i + 1))
-        .map_or(if window.is_empty() { 0.0 } else { end }, |w| w.0);
+    // The first sample after the last one outside the band (0 if none was outside; the
+    // window's end if the last sample still is).
+    let settle_s = match window.iter().rposition(|w| (w.1 - 1.0).abs() > 0.1) {
+        None => 0.0,
+        Some(i) => window.get(i + 1).map_or(end, |w| w.0),
+    };
     StepResponse {
         delay_s,
         overshoot,
@@ -166,7 +159,7 @@ impl Pulse {
     /// The table: each step's load and motor response side by side.
     pub fn table(&self) -> String {
         let mut s = format!(
-            "  {:<22} {:>12} {:>12} {:>12}\n",
+            "  {:<24} {:>13} {:>12} {:>12}\n",
             "", "delay to ½", "overshoot", "settled"
         );
         for (name, r) in [
@@ -176,7 +169,7 @@ impl Pulse {
             ("motor/N after the stop", self.motor_stop),
         ] {
             s += &format!(
-                "  {name:<22} {:>10.1} ms {:>10.0} % {:>9.1} ms\n",
+                "  {name:<24} {:>10.1} ms {:>10.0} % {:>9.1} ms\n",
                 1e3 * r.delay_s,
                 100.0 * r.overshoot,
                 1e3 * r.settle_s
@@ -187,7 +180,7 @@ impl Pulse {
 }
 
 /// Motor (÷ N) and load velocity against the setpoint's, the paper's Fig. 13.
-fn plot(path: &Path, label: &str, rows: &[Row], n: f64) -> Result<()> {
+fn plot(path: &Path, label: &str, rows: &[Row], n: f64, t_start: f64) -> Result<()> {
     let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let t1 = rows.iter().map(|r| r.time_s).fold(1e-3, f64::max);
@@ -213,7 +206,6 @@ fn plot(path: &Path, label: &str, rows: &[Row], n: f64) -> Result<()> {
         .y_desc("velocity (output rad/s)")
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    let t_start = LEAD_S;
     let t_stop = t_start + PULSE_S;
     let setpoint = move |t: f64| {
         if t >= t_start && t < t_stop {
