@@ -1006,6 +1006,12 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
     if let Some(t) = &a.trajectory {
         sc.trajectory = Trajectory::parse(t)?;
     }
+    if sc.mode == Mode::Velocity && matches!(sc.trajectory, Trajectory::Step { .. }) {
+        eprintln!(
+            "note: in velocity mode the card follows the trajectory's velocity, and a step has \
+             none (the joint holds still); give --trajectory ramp:TO:S, sine:AMP:HZ or csv:FILE"
+        );
+    }
     if let Some(r) = a.rate {
         sc.rate_hz = r;
     }
