@@ -1,10 +1,8 @@
 //! The HIL commands as a user runs them.
 
-use std::process::Command;
+mod common;
 
-fn hil() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_hil-host"))
-}
+use common::{demo_json, hil};
 
 #[test]
 fn demo_writes_recording_log_and_plot_and_prints_the_summary() {
@@ -182,19 +180,6 @@ fn run_over_threads_in_real_time_reports_lateness() {
     let ok = text.lines().nth(2).is_some_and(|l| l.starts_with("  OK: "));
     assert_eq!(out.status.code(), Some(if ok { 0 } else { 1 }), "{all}");
     assert!(text.contains("actuator frames missing"), "{all}");
-}
-
-fn demo_json(args: &[&str], out: &std::path::Path) -> serde_json::Value {
-    let o = hil()
-        .arg("demo")
-        .args(args)
-        .args(["--json", "--out"])
-        .arg(out)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    serde_json::from_str(&text)
-        .unwrap_or_else(|e| panic!("{e}: {text}\n{}", String::from_utf8_lossy(&o.stderr)))
 }
 
 fn figure(j: &serde_json::Value, name: &str) -> f64 {

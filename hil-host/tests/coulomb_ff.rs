@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{dir, hil, ok};
+use common::{demo_json, dir};
 use hil_host::lab::coulomb_ff::{sweep, UnderRow, UNDERS};
 
 fn at(rows: &[UnderRow], u: f64) -> &UnderRow {
@@ -58,21 +58,7 @@ fn the_cable_without_backlash_never_cycles() {
 #[test]
 fn the_scenario_prints_the_table_and_writes_the_plot() {
     let out = dir("coulomb_ff", "cli");
-    let o = hil()
-        .args([
-            "demo",
-            "--scenario",
-            "coulomb-ff",
-            "--preset",
-            "cyclo-29",
-            "--json",
-        ])
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    let stdout = ok(o);
-    let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let j = demo_json(&["--scenario", "coulomb-ff", "--preset", "cyclo-29"], &out);
     assert_eq!(j["rows"].as_array().unwrap().len(), UNDERS.len());
     assert!(out.join("coulomb-ff-cyclo-29.png").exists());
 }

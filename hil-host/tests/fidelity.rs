@@ -6,7 +6,7 @@ mod common;
 
 use std::collections::HashSet;
 
-use common::{dir, hil, ok};
+use common::{demo_json, dir};
 use hil_host::lab::fidelity::{ranking, sweep, SIX, STIFFNESSES};
 
 #[test]
@@ -44,12 +44,7 @@ fn the_six_transmissions_rank_as_in_the_thesis_at_every_stiffness() {
 #[test]
 fn the_scenario_prints_json_and_writes_the_loops() {
     let out = dir("fidelity", "cli");
-    let o = hil()
-        .args(["demo", "--scenario", "fidelity", "--json", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let j: serde_json::Value = serde_json::from_str(&ok(o)).unwrap();
+    let j = demo_json(&["--scenario", "fidelity"], &out);
     assert_eq!(j["ranking"].as_array().unwrap().len(), STIFFNESSES.len());
     assert!(out.join("fidelity.png").exists());
 }

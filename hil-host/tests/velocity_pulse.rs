@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{dir, hil, ok};
+use common::{demo_json, dir};
 use hil_host::lab::velocity_pulse::{run, Pulse, PULSE_SPEED};
 
 fn pulse(preset: &str) -> Pulse {
@@ -54,20 +54,10 @@ fn with_a_gap_the_load_waits_after_the_start_and_not_after_the_stop() {
 #[test]
 fn the_scenario_prints_json_and_writes_the_plot() {
     let out = dir("velocity_pulse", "cli");
-    let o = hil()
-        .args([
-            "demo",
-            "--scenario",
-            "velocity-pulse",
-            "--preset",
-            "cyclo-29",
-            "--json",
-        ])
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    let j: serde_json::Value = serde_json::from_str(&ok(o)).unwrap();
+    let j = demo_json(
+        &["--scenario", "velocity-pulse", "--preset", "cyclo-29"],
+        &out,
+    );
     assert_eq!(j["pulse"]["label"], "cyclo-29");
     assert!(j["pulse"]["backlash_rad"].as_f64().unwrap() > 0.0);
     assert!(out.join("velocity-pulse-cyclo-29.png").exists());

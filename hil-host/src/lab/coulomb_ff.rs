@@ -9,11 +9,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context, Result};
-use plotters::prelude::*;
+use plotters::style::colors::{BLACK, BLUE, GREEN, MAGENTA, RED};
 use sim_plant::Model;
 
 use super::close_loop::{held_step, track};
 use super::compensate::Compensation;
+use super::plot::{line_chart, Line};
 use super::recorder::Row;
 use super::scenario::{Scenario, ScenarioKind};
 
@@ -161,44 +162,25 @@ fn plot_holds(path: &Path, label: &str, holds: &[(f64, Vec<Row>)], cpr: f64) -> 
         .flat_map(|(_, p)| p.iter().map(|q| q.1.abs()))
         .fold(2.0, f64::max)
         * 1.1;
-    let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{label}: the held step with Coulomb feed-forward on the measured velocity"),
-            ("sans-serif", 22),
-        )
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t1, -ext..ext)
-        .map_err(|e| anyhow!("{e}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("time in the last 0.5 s of the hold (s)")
-        .y_desc("motor position about its mean (counts)")
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
     let colours = [BLACK, GREEN, BLUE, MAGENTA, RED];
-    for ((u, points), colour) in centred.into_iter().zip(colours.iter().cycle()) {
-        let colour = *colour;
-        let name = if u == 0.0 {
-            "no feed-forward".to_string()
-        } else {
-            format!("under {u}")
-        };
-        chart
-            .draw_series(LineSeries::new(points, colour))
-            .map_err(|e| anyhow!("{e}"))?
-            .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("{e}"))?;
-    Ok(())
+    let lines = centred
+        .into_iter()
+        .zip(colours.iter().cycle())
+        .map(|((u, points), colour)| Line {
+            name: if u == 0.0 {
+                "no feed-forward".to_string()
+            } else {
+                format!("under {u}")
+            },
+            colour: *colour,
+            points,
+        })
+        .collect();
+    line_chart(
+        path,
+        &format!("{label}: the held step with Coulomb feed-forward on the measured velocity"),
+        ("time in the last 0.5 s of the hold (s)", 0.0..t1),
+        ("motor position about its mean (counts)", -ext..ext),
+        lines,
+    )
 }

@@ -224,39 +224,47 @@ pub fn html_report(
     Ok(path)
 }
 
-/// Tracking error over time, without and with compensation, on one chart.
-pub fn plot_before_after(path: &Path, title: &str, before: &[Row], after: &[Row]) -> Result<()> {
+/// One curve of a [`line_chart`]: legend name, colour, points.
+#[derive(Clone, Debug)]
+pub struct Line {
+    /// Legend name.
+    pub name: String,
+    /// Colour.
+    pub colour: RGBColor,
+    /// (x, y) points.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A 1200×600 PNG of `lines` over `x` and `y` (axis label, range), with a legend.
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x: (&str, std::ops::Range<f64>),
+    y: (&str, std::ops::Range<f64>),
+    lines: Vec<Line>,
+) -> Result<()> {
     let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
-    let t1 = before
-        .iter()
-        .chain(after)
-        .map(|r| r.time_s)
-        .fold(1e-3, f64::max);
-    let (lo, hi) = range(before.iter().chain(after).map(err));
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(0.0..t1, lo..hi)
+        .build_cartesian_2d(x.1, y.1)
         .map_err(|e| anyhow!("{e}"))?;
     chart
         .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("tracking error (output rad)")
+        .x_desc(x.0)
+        .y_desc(y.0)
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    for (name, rows, color) in [("without", before, RED), ("with compensation", after, BLUE)] {
+    for line in lines {
+        let colour = line.colour;
         chart
-            .draw_series(LineSeries::new(
-                rows.iter().map(|r| (r.time_s, err(r))),
-                color,
-            ))
+            .draw_series(LineSeries::new(line.points, colour))
             .map_err(|e| anyhow!("{e}"))?
-            .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
+            .label(line.name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
     }
     chart
         .configure_series_labels()
@@ -266,4 +274,30 @@ pub fn plot_before_after(path: &Path, title: &str, before: &[Row], after: &[Row]
         .map_err(|e| anyhow!("{e}"))?;
     root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
+}
+
+/// Tracking error over time, without and with compensation, on one chart.
+pub fn plot_before_after(path: &Path, title: &str, before: &[Row], after: &[Row]) -> Result<()> {
+    let err = |r: &Row| r.setpoint_pos_rad - r.output_pos_rad;
+    let t1 = before
+        .iter()
+        .chain(after)
+        .map(|r| r.time_s)
+        .fold(1e-3, f64::max);
+    let (lo, hi) = range(before.iter().chain(after).map(err));
+    let line = |name: &str, rows: &[Row], colour| Line {
+        name: name.to_string(),
+        colour,
+        points: rows.iter().map(|r| (r.time_s, err(r))).collect(),
+    };
+    line_chart(
+        path,
+        title,
+        ("time (s)", 0.0..t1),
+        ("tracking error (output rad)", lo..hi),
+        vec![
+            line("without", before, RED),
+            line("with compensation", after, BLUE),
+        ],
+    )
 }

@@ -9,11 +9,12 @@
 use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{Context, Result};
 use controller::proto::Mode;
-use plotters::prelude::*;
+use plotters::style::colors::{BLACK, BLUE, RED};
 use sim_plant::Model;
 
+use super::plot::{line_chart, Line};
 use super::recorder::Row;
 use super::scenario::{Scenario, ScenarioKind};
 use super::trajectory::Trajectory;
@@ -181,8 +182,6 @@ impl Pulse {
 
 /// Motor (÷ N) and load velocity against the setpoint's, the paper's Fig. 13.
 fn plot(path: &Path, label: &str, rows: &[Row], n: f64, t_start: f64) -> Result<()> {
-    let root = BitMapBackend::new(path, (1200, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let t1 = rows.iter().map(|r| r.time_s).fold(1e-3, f64::max);
     let vs: Vec<f64> = rows
         .iter()
@@ -190,60 +189,28 @@ fn plot(path: &Path, label: &str, rows: &[Row], n: f64, t_start: f64) -> Result<
         .collect();
     let lo = vs.iter().copied().fold(PULSE_SPEED, f64::min) * 1.1;
     let hi = vs.iter().copied().fold(0.0, f64::max) + 0.1 * PULSE_SPEED.abs();
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{label}: a {PULSE_S} s velocity pulse under the card's velocity loop"),
-            ("sans-serif", 22),
-        )
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..t1, lo..hi)
-        .map_err(|e| anyhow!("{e}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("velocity (output rad/s)")
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
     let t_stop = t_start + PULSE_S;
-    let setpoint = move |t: f64| {
+    let setpoint = |t: f64| {
         if t >= t_start && t < t_stop {
             PULSE_SPEED
         } else {
             0.0
         }
     };
-    type Curve<'a> = (&'a str, RGBColor, Box<dyn Fn(&Row) -> f64>);
-    let curves: [Curve; 3] = [
-        (
-            "setpoint",
-            BLACK,
-            Box::new(move |r: &Row| setpoint(r.time_s)),
-        ),
-        (
-            "motor / N",
-            BLUE,
-            Box::new(move |r: &Row| r.motor_vel_rad_s / n),
-        ),
-        ("load", RED, Box::new(|r: &Row| r.output_vel_rad_s)),
-    ];
-    for (name, colour, f) in curves {
-        chart
-            .draw_series(LineSeries::new(
-                rows.iter().map(|r| (r.time_s, f(r))),
-                colour,
-            ))
-            .map_err(|e| anyhow!("{e}"))?
-            .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("{e}"))?;
-    Ok(())
+    let line = |name: &str, colour, f: &dyn Fn(&Row) -> f64| Line {
+        name: name.to_string(),
+        colour,
+        points: rows.iter().map(|r| (r.time_s, f(r))).collect(),
+    };
+    line_chart(
+        path,
+        &format!("{label}: a {PULSE_S} s velocity pulse under the card's velocity loop"),
+        ("time (s)", 0.0..t1),
+        ("velocity (output rad/s)", lo..hi),
+        vec![
+            line("setpoint", BLACK, &|r| setpoint(r.time_s)),
+            line("motor / N", BLUE, &|r| r.motor_vel_rad_s / n),
+            line("load", RED, &|r| r.output_vel_rad_s),
+        ],
+    )
 }

@@ -33,6 +33,21 @@ pub fn ok(o: Output) -> String {
     String::from_utf8(o.stdout).unwrap()
 }
 
+/// `hil-host demo ARGS… --json --out OUT`: its JSON report (a run that printed none fails
+/// the test with its stderr).
+pub fn demo_json(args: &[&str], out: &std::path::Path) -> serde_json::Value {
+    let o = hil()
+        .arg("demo")
+        .args(args)
+        .args(["--json", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("{e}: {text}\n{}", String::from_utf8_lossy(&o.stderr)))
+}
+
 /// The repository's root (shipped datasets and data live there).
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
