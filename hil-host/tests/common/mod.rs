@@ -4,15 +4,23 @@
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The `hil-host` binary cargo built for these tests.
 pub fn hil() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hil-host"))
 }
 
-/// A fresh scratch directory `jointlab-<suite>-<pid>-<name>` under the system's temp dir.
+/// A fresh scratch directory `jointlab-<suite>-<pid>-<n>-<name>` under the system's temp dir.
+/// `n` counts the calls in this process: tests run in parallel threads, and two of them may
+/// ask for the same name (the same preset, say) and must not write into one directory.
 pub fn dir(suite: &str, name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("jointlab-{suite}-{}-{name}", std::process::id()));
+    static CALLS: AtomicUsize = AtomicUsize::new(0);
+    let n = CALLS.fetch_add(1, Ordering::Relaxed);
+    let d = std::env::temp_dir().join(format!(
+        "jointlab-{suite}-{}-{n}-{name}",
+        std::process::id()
+    ));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
