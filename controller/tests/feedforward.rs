@@ -152,3 +152,50 @@ fn velocity_mode_is_kv_times_the_error_plus_ki_times_its_integral() {
         assert!((tau - (10 + n)).abs() <= 1, "tick {n}: {tau}");
     }
 }
+
+/// In the non-colocated modes Ke and Be are per output-encoder count (protocol, "Modes"), so
+/// the §2.9 guard must take them to the motor through the encoders' ratio: with 8 output
+/// counts per motor-equivalent count, the largest Ke it admits per output count is 8 times
+/// smaller than per motor count at the same damping, and the same rigid joint.
+#[test]
+fn the_guard_reads_non_colocated_gains_per_output_count() {
+    use controller::proto::Mode;
+    let n = 30;
+    let base = [
+        (p::ROTOR_INERTIA, 10_000),
+        (p::MOTOR_COUNTS_PER_REV, 2304),
+        (p::GEAR_RATIO, n * 65_536),
+        (p::OUTPUT_COUNTS_PER_REV, 2304 * n * 8),
+        (p::TORQUE_LIMIT, 20_000),
+        (p::STABILITY_MARGIN, 65_536),
+    ];
+    // The largest KE the card accepts in `mode` with BE = `be`, by bisection on the raw value.
+    let largest = |mode: Mode, be: i32| {
+        let accepts = |ke: i32| {
+            let mut s = ParamStore::new();
+            s.apply(&base);
+            s.apply(&[(p::KE, ke), (p::BE, be)]);
+            config::build(&s, Some(mode)).is_ok()
+        };
+        let (mut lo, mut hi) = (1i32, i32::MAX / 2);
+        assert!(accepts(lo) && !accepts(hi));
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if accepts(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    };
+    for be in [8 * 20_000, 8 * 200_000, 8 * 2_000_000] {
+        let colocated = largest(Mode::PositionPdColocated, be);
+        let per_output = largest(Mode::PositionPdNonColocated, be / 8);
+        let ratio = f64::from(colocated) / f64::from(per_output);
+        assert!(
+            (ratio / 8.0 - 1.0).abs() < 1e-3,
+            "BE {be}: {colocated} vs {per_output}"
+        );
+    }
+}

@@ -65,8 +65,10 @@ impl Script {
     }
 }
 
+/// The set's entries; every mode this run arms feeds back the motor encoder.
 fn entries(g: &GainSet, j: &JointScale) -> Vec<(u16, i32)> {
-    g.entries(j).expect("gain set converts")
+    g.entries(j, Mode::PositionPdColocated)
+        .expect("gain set converts")
 }
 
 /// Scripted HIL run on whoi-cable-30 against a spring (so the torque sensor reads): PD,

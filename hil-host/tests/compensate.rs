@@ -60,7 +60,7 @@ fn a_gains_file_sets_the_laws_and_refuses_a_misspelt_key() {
     let m = sim_plant::presets::preset("harmonic-drive-60").unwrap();
     let mut sc = Scenario::new(ScenarioKind::Step, &m).unwrap();
     GainsFile::load(&f).unwrap().apply(&mut sc.gains);
-    let e = sc.gains.entries(&sc.scale).unwrap();
+    let e = sc.gains.entries(&sc.scale, sc.mode).unwrap();
     let get = |id: u16| e.iter().find(|(i, _)| *i == id).map(|(_, v)| *v);
     // 5 N·m at the output is 5/60 N·m = 833 τLSB at the motor; 1 N·m offset 167 τLSB.
     assert_eq!(get(p::COULOMB_POS), Some(833));

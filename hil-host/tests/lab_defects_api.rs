@@ -96,7 +96,7 @@ fn defect4_an_uncommitted_gain_set_is_reported() {
     let mut sup = Supervisor::new(
         node,
         sc.scale,
-        sc.gains.entries(&sc.scale).unwrap(),
+        sc.gains.entries(&sc.scale, sc.mode).unwrap(),
         sc.mode,
         sc.target,
         sc.trajectory.clone(),

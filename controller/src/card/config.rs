@@ -138,16 +138,22 @@ pub fn rate_hz(s: &ParamStore) -> u16 {
     u16::try_from(1_000_000i32.checked_div(period).unwrap_or(1000)).unwrap_or(u16::MAX)
 }
 
-/// The stability guard on the store's (Ke, Be) read as motor-side colocated PD gains with
-/// the store's rotor inertia, period and margin, Be less what a viscous friction feed-forward
-/// takes away. Passes when both gains are zero (no PD).
-pub fn check_stability(s: &ParamStore) -> Result<(), ConfigError> {
+/// The stability guard on the store's (Ke, Be) read as motor-side PD gains with the store's
+/// rotor inertia, period and margin, Be less what a viscous friction feed-forward takes away.
+/// In `mode`'s non-colocated forms the gains are per output count, taken at the motor through
+/// the gear ratio (the rigid joint the guard assumes). Passes when both gains are zero.
+pub fn check_stability(s: &ParamStore, mode: Option<Mode>) -> Result<(), ConfigError> {
     let (ke_raw, be_raw) = (s.raw(p::KE), s.raw(p::BE));
     if ke_raw == 0 && be_raw == 0 {
         return Ok(());
     }
-    let cpr = f64::from(s.raw(p::MOTOR_COUNTS_PER_REV).max(1));
-    let rad_per_count = core::f64::consts::TAU / cpr;
+    let rad_per_count = if mode.is_some_and(|m| m.needs_output_encoder()) {
+        let cpr = f64::from(s.raw(p::OUTPUT_COUNTS_PER_REV).max(1));
+        core::f64::consts::TAU / cpr * q16(s.raw(p::GEAR_RATIO))
+    } else {
+        let cpr = f64::from(s.raw(p::MOTOR_COUNTS_PER_REV).max(1));
+        core::f64::consts::TAU / cpr
+    };
     let period_s = f64::from(s.raw(p::CONTROL_PERIOD)) * 1e-6;
     let ke_si = q16(ke_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count;
     let per_tick = |raw: i32| q16(raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
@@ -196,7 +202,7 @@ fn gravity(s: &ParamStore) -> Result<Option<Gravity>, ConfigError> {
 
 /// Builds the running configuration for `mode` (or with no main law, for `None`).
 pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigError> {
-    check_stability(s)?;
+    check_stability(s, mode)?;
     let rate = f64::from(rate_hz(s));
     // Q16.16 per count/tick → per (1/16 count/s): divide by 16·rate.
     let per_rate = |param: u16| gain(param, q16(s.raw(param)) / (16.0 * rate));

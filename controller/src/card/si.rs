@@ -7,7 +7,9 @@
 //!
 //! Of a [`Scale`] these read the period and the motor encoder only: the table's gains are per
 //! motor count, and its torques are in the wire's LSBs (`proto::scale`), whatever
-//! `Scale::torque_lsb_nm` says.
+//! `Scale::torque_lsb_nm` says. The exception is Ke and Be in the non-colocated modes, which
+//! act on output-encoder counts: for an output-side Ke pass Ke·cpr_motor/(N·cpr_output), the
+//! motor gain giving the same torque per output count (Be likewise).
 
 use crate::proto::params::{self as p, ParamDef};
 use crate::proto::scale::{MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};

@@ -24,6 +24,7 @@ use crate::lab::qemu_card::{resolve_image, run_qemu_card, CardChoice, QemuCard};
 use crate::lab::recorder::{read_rows, Recorder};
 use crate::lab::report::{self, CardFacts, Facts, Report, RunFailed, SupervisorFacts, Verdict};
 use crate::lab::scenario::{Scenario, ScenarioKind};
+use crate::lab::stability;
 use crate::lab::summary::summarize_with;
 use crate::lab::supervisor::{Event, Phase, Supervisor};
 use crate::lab::threaded::{run_card, run_plant, run_supervisor, Clock, PlantLoop, PlantStats};
@@ -263,7 +264,9 @@ pub struct DemoArgs {
     /// compensate (identify → diagnose --auto → compensate → tasks without and with);
     /// coulomb-ff (the thesis's Coulomb feed-forward at under-compensation 0.6–1.2);
     /// fidelity (the six transmissions' stiffness emulation ranked; --preset is not used);
-    /// velocity-pulse (a 1 s speed pulse under the card's velocity loop, motor vs load).
+    /// velocity-pulse (a 1 s speed pulse under the card's velocity loop, motor vs load);
+    /// stability (the thesis's stability maps: the lab's boundaries beside Routh's; --preset
+    /// is not used).
     #[arg(long, default_value = "stiffness")]
     pub scenario: String,
     #[command(flatten)]
@@ -315,7 +318,7 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
             let names: Vec<_> = ScenarioKind::ALL.iter().map(|k| k.name()).collect();
             anyhow!(
                 "unknown scenario `{spec}`; one of: {}, compensate, coulomb-ff, fidelity, \
-                 velocity-pulse, all",
+                 stability, velocity-pulse, all",
                 names.join(", ")
             )
         })
@@ -339,12 +342,13 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     }
     if matches!(
         a.scenario.as_str(),
-        "coulomb-ff" | "fidelity" | "velocity-pulse"
+        "coulomb-ff" | "fidelity" | "velocity-pulse" | "stability"
     ) {
         experiment_flags(&a)?;
         return match a.scenario.as_str() {
             "coulomb-ff" => coulomb_ff_demo(&a, &model),
             "fidelity" => fidelity_demo(&a),
+            "stability" => stability_demo(&a),
             _ => velocity_pulse_demo(&a, &model),
         };
     }
@@ -547,7 +551,7 @@ fn experiment_flags(a: &DemoArgs) -> Result<()> {
         ("--card", a.card != CardChoice::Host),
         (
             "--preset/--model",
-            a.scenario == "fidelity"
+            matches!(a.scenario.as_str(), "fidelity" | "stability")
                 && (a.plant.model.is_some() || a.plant.preset != "whoi-cable-30"),
         ),
     ];
@@ -627,6 +631,57 @@ fn fidelity_demo(a: &DemoArgs) -> Result<()> {
     );
     print!("{}", fidelity::table(&cells));
     println!("  wrote {} (and a recording per run)", png.display());
+    Ok(())
+}
+
+/// `demo --scenario stability`: the thesis's stability maps, each boundary bisected on the
+/// lab beside the closed form and the Routh criterion.
+fn stability_demo(a: &DemoArgs) -> Result<()> {
+    let pb = if a.quiet || a.report.json {
+        ProgressBar::hidden()
+    } else {
+        let pb = ProgressBar::new_spinner();
+        if let Ok(st) = ProgressStyle::with_template("{spinner} {elapsed} {pos} lab runs") {
+            pb.set_style(st);
+        }
+        pb
+    };
+    let maps = stability::maps(a.seed, &a.out, || pb.inc(1))?;
+    let ceiling = stability::ceiling(a.seed, &a.out, || pb.inc(1))?;
+    pb.finish_and_clear();
+    let mut pngs = stability::plot(&a.out, &maps)?;
+    pngs.push(stability::plot_ceiling(
+        &a.out.join("stability-ceiling.png"),
+        &ceiling,
+    )?);
+    if a.report.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "schema_version": 1,
+                "plant_free": stability::FREE,
+                "plant_contact": stability::CONTACT,
+                "joint": stability::JOINT,
+                "maps": maps,
+                "ceiling": ceiling,
+                "plots": pngs.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            })
+        );
+        return Ok(());
+    }
+    println!(
+        "\nstability — the thesis's stability maps on the lab (two-mass plant, I1 = I2 = {} \
+         kg·m², KT = {} N·m/rad, Kf = {} N·m/rad in contact, output-referred), seed {}",
+        stability::FREE.j1,
+        stability::FREE.kt,
+        stability::CONTACT.kf,
+        a.seed
+    );
+    print!("{}", stability::table(&maps));
+    print!("{}", stability::ceiling_table(&ceiling));
+    for f in &pngs {
+        println!("  wrote {}", f.display());
+    }
     Ok(())
 }
 
@@ -1021,7 +1076,7 @@ pub fn build_supervisor(a: &SuperviseArgs, model: &Model) -> Result<(Scenario, S
     }
     sc.gains.sensor_timeout_us = a.sensor_timeout_us;
     a.laws.apply_compensation(&mut sc)?;
-    let entries = sc.gains.entries(&sc.scale)?;
+    let entries = sc.gains.entries(&sc.scale, sc.mode)?;
     if let Err(e) = gains::check(&entries, sc.mode) {
         if a.force {
             eprintln!("warning: {e:#} — sending anyway (--force); the card will refuse an unstable set itself");

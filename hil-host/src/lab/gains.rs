@@ -64,6 +64,17 @@ impl JointScale {
     pub fn motor_counts_per_output_rad(&self) -> f64 {
         self.motor_cpr() * self.gear_ratio() / std::f64::consts::TAU
     }
+
+    /// Counts per output radian of the encoder `mode` feeds back: the output encoder's in
+    /// the non-colocated modes (their setpoints and Ke, Be are per output count, protocol
+    /// §"Modes"), the motor's otherwise.
+    pub fn counts_per_output_rad(&self, mode: Mode) -> f64 {
+        if mode.needs_output_encoder() {
+            f64::from(self.card.output_cpr) / std::f64::consts::TAU
+        } else {
+            self.motor_counts_per_output_rad()
+        }
+    }
 }
 
 /// Friction feed-forward (output side, N·m and N·m·s/rad).
@@ -216,11 +227,15 @@ fn ff_torque(param: u16, nm: f64) -> Result<i32, si::SiError> {
 }
 
 impl GainSet {
-    /// The parameter entries for this set on `joint` (plant constants included).
-    pub fn entries(&self, j: &JointScale) -> Result<Vec<(u16, i32)>> {
+    /// The parameter entries for this set on `joint` (plant constants included), for `mode`.
+    pub fn entries(&self, j: &JointScale, mode: Mode) -> Result<Vec<(u16, i32)>> {
         let n = j.gear_ratio();
         let m = j.card;
         let mg = |k: f64| motor_gain_from_output(k, n);
+        // Ke and Be act on the fed-back encoder's counts: `si` scales per motor count, so a
+        // non-colocated gain goes in as the motor gain giving the same torque per output count.
+        let law_gain =
+            |k: f64| mg(k) * j.motor_counts_per_output_rad() / j.counts_per_output_rad(mode);
         let mut e = vec![
             (
                 p::ROTOR_INERTIA,
@@ -231,11 +246,11 @@ impl GainSet {
             (p::GEAR_RATIO, (n * 65536.0).round() as i32),
             (
                 p::KE,
-                si::stiffness(&m, mg(self.stiffness)).map_err(si_err)?,
+                si::stiffness(&m, law_gain(self.stiffness)).map_err(si_err)?,
             ),
             (
                 p::BE,
-                si::damping(p::BE, &m, mg(self.damping)).map_err(si_err)?,
+                si::damping(p::BE, &m, law_gain(self.damping)).map_err(si_err)?,
             ),
             (p::KI, si::integral(&m, mg(self.integral)).map_err(si_err)?),
             (

@@ -34,6 +34,7 @@ pub mod qemu_card;
 pub mod recorder;
 pub mod report;
 pub mod scenario;
+pub mod stability;
 pub mod summary;
 pub mod supervisor;
 pub mod threaded;
@@ -142,7 +143,7 @@ impl Lab {
                 environment: scenario.environment(0.0),
             },
         )?;
-        let entries = scenario.gains.entries(&scenario.scale)?;
+        let entries = scenario.gains.entries(&scenario.scale, scenario.mode)?;
         gains::check(&entries, scenario.mode)?;
         let name = format!("lab-{}", opts.seed);
         let hub = match opts.faults.rx_queue() {

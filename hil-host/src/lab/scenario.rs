@@ -325,6 +325,11 @@ impl Scenario {
         }
     }
 
+    /// What the output touches in the wall scenario, from the start (`None`: free space).
+    pub fn set_wall(&mut self, wall: Option<Environment>) {
+        self.wall = wall;
+    }
+
     /// What the output touches at time `t` (s since the run began).
     pub fn environment(&self, t: f64) -> Environment {
         let ts = t - SETTLE_S;

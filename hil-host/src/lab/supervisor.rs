@@ -325,7 +325,7 @@ impl Supervisor {
         self.last_setpoint = v;
         match self.target {
             Target::Position => {
-                let per_rad = self.scale.motor_counts_per_output_rad();
+                let per_rad = self.scale.counts_per_output_rad(self.mode);
                 let counts = (v * per_rad).round();
                 // 8 counts/s per LSB
                 let vff = if self.velocity_ff {

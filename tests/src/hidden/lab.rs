@@ -662,7 +662,9 @@ fn run(
         quick_stop_damping: 2.0 * 0.7 * jt.inertia() * TAU * 5.0 * n2,
         ..GainSet::default()
     };
-    let entries = set.entries(&scale).map_err(|e| format!("gains: {e}"))?;
+    let entries = set
+        .entries(&scale, d.mode)
+        .map_err(|e| format!("gains: {e}"))?;
     gains::check(&entries, d.mode).map_err(|e| format!("gains: {e}"))?;
     // The supervisor evaluates its trajectory only at its frames: samples there (its
     // piecewise-linear lookup scans them from the start at every frame).
