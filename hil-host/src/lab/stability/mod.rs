@@ -2,8 +2,9 @@
 //! one gain fixed and sweeps another; at every point the card's own law, running against the
 //! linear two-mass plant in `sim-plant`, is bisected to the gain where a small step's motion
 //! stops dying out. Beside it: the thesis's closed form where there is one, and the Routh
-//! criterion on the continuous-time quartic. The plant's modes (3–15 Hz) sit far below the
-//! card's 1 kHz rate and 100 Hz velocity observer, where a continuous analysis should hold.
+//! criterion on the continuous-time quartic. The plants' modes (0.4–1.8 Hz) sit far below
+//! the card's 1 kHz rate and 100 Hz velocity observer, where a continuous analysis holds to a
+//! few per cent.
 
 mod plot;
 pub mod routh;
@@ -19,10 +20,10 @@ use trial::Joint;
 
 pub use plot::plot;
 
-/// The harmonic drive's joint of the thesis's Ch. 3 analysis, output-referred: its rotor
-/// (1.875e-3 kg·m² × 60²), the soft-zone stiffness KT = 2 500 N·m/rad, an output inertia equal
-/// to the reflected rotor's (where non-colocated control is least stable, §2.2) and 5 %
-/// damping of each side's mode to ground.
+/// A two-mass joint, output-referred: the harmonic drive's soft-zone stiffness KT =
+/// 2 500 N·m/rad of the thesis's Ch. 3 analysis between a reflected rotor and an output of
+/// equal inertia (where non-colocated control is least stable, §2.2), each 108 kg·m² so that
+/// the modes are slow against the card's sampling, and about 5 % damping to ground each side.
 pub const FREE: TwoMass = TwoMass {
     j1: 108.0,
     b1: 52.0,
