@@ -67,9 +67,10 @@ impl JointScale {
 
     /// Counts per output radian of the encoder `mode` feeds back: the output encoder's in
     /// the non-colocated modes (their setpoints and Ke, Be are per output count, protocol
-    /// §"Modes"), the motor's otherwise.
+    /// §"Modes"), the motor's otherwise, and the motor's when there is no output encoder (the
+    /// card refuses such a mode itself, and says why).
     pub fn counts_per_output_rad(&self, mode: Mode) -> f64 {
-        if mode.needs_output_encoder() {
+        if mode.needs_output_encoder() && self.card.output_cpr > 0 {
             f64::from(self.card.output_cpr) / std::f64::consts::TAU
         } else {
             self.motor_counts_per_output_rad()
