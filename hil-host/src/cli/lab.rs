@@ -11,6 +11,7 @@ use controller::proto::{Mode, NodeId};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim_plant::{Model, Plant, PlantOptions};
 
+use crate::lab::backlash_cycle;
 use crate::lab::card_node::CardNode;
 use crate::lab::close_loop;
 use crate::lab::compensate::{self, Compensation};
@@ -266,7 +267,8 @@ pub struct DemoArgs {
     /// fidelity (the six transmissions' stiffness emulation ranked; --preset is not used);
     /// velocity-pulse (a 1 s speed pulse under the card's velocity loop, motor vs load);
     /// stability (the thesis's stability maps: the lab's boundaries beside Routh's; --preset
-    /// is not used).
+    /// is not used); backlash-cycle (the thesis's limit cycle vs gap width and preload, on
+    /// cyclo-29 and kamo-ball-10 with the thesis's rotor; --preset is not used).
     #[arg(long, default_value = "stiffness")]
     pub scenario: String,
     #[command(flatten)]
@@ -317,8 +319,8 @@ fn scenarios(spec: &str) -> Result<Vec<ScenarioKind>> {
         .ok_or_else(|| {
             let names: Vec<_> = ScenarioKind::ALL.iter().map(|k| k.name()).collect();
             anyhow!(
-                "unknown scenario `{spec}`; one of: {}, compensate, coulomb-ff, fidelity, \
-                 stability, velocity-pulse, all",
+                "unknown scenario `{spec}`; one of: {}, compensate, backlash-cycle, \
+                 coulomb-ff, fidelity, stability, velocity-pulse, all",
                 names.join(", ")
             )
         })
@@ -342,10 +344,11 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     }
     if matches!(
         a.scenario.as_str(),
-        "coulomb-ff" | "fidelity" | "velocity-pulse" | "stability"
+        "coulomb-ff" | "fidelity" | "velocity-pulse" | "stability" | "backlash-cycle"
     ) {
         experiment_flags(&a)?;
         return match a.scenario.as_str() {
+            "backlash-cycle" => backlash_cycle_demo(&a),
             "coulomb-ff" => coulomb_ff_demo(&a, &model),
             "fidelity" => fidelity_demo(&a),
             "stability" => stability_demo(&a),
@@ -551,8 +554,10 @@ fn experiment_flags(a: &DemoArgs) -> Result<()> {
         ("--card", a.card != CardChoice::Host),
         (
             "--preset/--model",
-            matches!(a.scenario.as_str(), "fidelity" | "stability")
-                && (a.plant.model.is_some() || a.plant.preset != "whoi-cable-30"),
+            matches!(
+                a.scenario.as_str(),
+                "fidelity" | "stability" | "backlash-cycle"
+            ) && (a.plant.model.is_some() || a.plant.preset != "whoi-cable-30"),
         ),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
@@ -631,6 +636,55 @@ fn fidelity_demo(a: &DemoArgs) -> Result<()> {
     );
     print!("{}", fidelity::table(&cells));
     println!("  wrote {} (and a recording per run)", png.display());
+    Ok(())
+}
+
+/// `demo --scenario backlash-cycle`: the thesis's high-gain hold with a light rotor before
+/// the gap, the cycle against the gap's width and a preload.
+fn backlash_cycle_demo(a: &DemoArgs) -> Result<()> {
+    let mut runs = Vec::new();
+    for name in backlash_cycle::PRESETS {
+        let preset = sim_plant::presets::preset(name).ok_or_else(|| anyhow!("no preset {name}"))?;
+        runs.push(backlash_cycle::run(&preset, name, a.seed, &a.out)?);
+    }
+    let cable = backlash_cycle::no_gap(a.seed, &a.out)?;
+    let pngs = backlash_cycle::plot(&a.out, &runs)?;
+    if a.report.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "schema_version": 1,
+                "gain_Nm_per_deg": backlash_cycle::GAIN_NM_PER_DEG,
+                "rotor_inertia": backlash_cycle::ROTOR_INERTIA,
+                "presets": runs,
+                "no_gap": { "preset": backlash_cycle::NO_GAP, "cycle": cable },
+                "plots": pngs.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            })
+        );
+        return Ok(());
+    }
+    println!(
+        "\nbacklash-cycle — the high-gain hold ({} N·m/deg) with the thesis's rotor before the \
+         gap and the load beyond it, tapped; seed {}",
+        backlash_cycle::GAIN_NM_PER_DEG,
+        a.seed
+    );
+    for r in &runs {
+        println!(
+            "\n{} (own gap: motor p-p {:.3}° over a {:.2}° gap)",
+            r.preset, r.own.motor_pp_deg, r.own.gap_deg
+        );
+        print!("{}", r.table());
+    }
+    println!(
+        "\n{} (no gap): motor p-p {:.3}° ({} counts)",
+        backlash_cycle::NO_GAP,
+        cable.motor_pp_deg,
+        cable.counts
+    );
+    for f in &pngs {
+        println!("  wrote {}", f.display());
+    }
     Ok(())
 }
 

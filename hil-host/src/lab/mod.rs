@@ -19,6 +19,7 @@
 //! whose verdict (ok, degraded, faulted, incomplete, interrupted) sets the exit code, and
 //! whose figures are computed from the recording on disk ([`recorder`], [`summary`]).
 
+pub mod backlash_cycle;
 pub mod card_node;
 pub mod close_loop;
 pub mod compensate;

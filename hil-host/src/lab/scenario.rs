@@ -77,6 +77,7 @@ pub struct Scenario {
     crank_period: f64,
     wall: Option<Environment>,
     tap_torque: f64,
+    preload: f64,
     /// The supervisor sends the trajectory's velocity with each setpoint (the card's velocity
     /// feed-forward).
     pub velocity_ff: bool,
@@ -157,6 +158,7 @@ impl Scenario {
                     crank_period: 4.0,
                     wall: None,
                     tap_torque: 0.0,
+                    preload: 0.0,
                     velocity_ff: false,
                 }
             }
@@ -179,6 +181,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    preload: 0.0,
                     velocity_ff: false,
                 }
             }
@@ -208,6 +211,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    preload: 0.0,
                     velocity_ff: false,
                 }
             }
@@ -238,6 +242,7 @@ impl Scenario {
                     rest: 0.0,
                 }),
                 tap_torque: 0.0,
+                preload: 0.0,
                 velocity_ff: false,
             },
             ScenarioKind::Identify => {
@@ -266,6 +271,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 0.0,
+                    preload: 0.0,
                     velocity_ff: false,
                 }
             }
@@ -306,6 +312,7 @@ impl Scenario {
                     crank_period: 0.0,
                     wall: None,
                     tap_torque: 1.5 * model.motor.max_torque.value * n,
+                    preload: 0.0,
                     velocity_ff: false,
                 }
             }
@@ -323,6 +330,12 @@ impl Scenario {
         if self.crank_period > 0.0 {
             self.crank_speed = amplitude / (0.25 * self.crank_period);
         }
+    }
+
+    /// A constant torque on the output through the backlash scenario's hold (output N·m): it
+    /// presses the load against one flank of the gap.
+    pub fn set_preload(&mut self, torque: f64) {
+        self.preload = torque;
     }
 
     /// What the output touches in the wall scenario, from the start (`None`: free space).
@@ -354,7 +367,10 @@ impl Scenario {
             ScenarioKind::Wall => self.wall.unwrap_or(Environment::Free),
             // "tap the output" (thesis §5 limit-cycle tests): a short torque pulse.
             ScenarioKind::Backlash if (0.5..0.52).contains(&ts) => Environment::Torque {
-                torque: self.tap_torque,
+                torque: self.tap_torque + self.preload,
+            },
+            ScenarioKind::Backlash if self.preload != 0.0 && ts > 0.0 => Environment::Torque {
+                torque: self.preload,
             },
             _ => Environment::Free,
         }
