@@ -158,7 +158,7 @@ pub fn force_ke_max(p: &TwoMass, be: f64, input_damping: bool) -> Option<f64> {
     (bc_ad > 0.0).then(|| d * bc_ad / (b * b * p.kt * p.kf) - 1.0)
 }
 
-/// The roots of polynomial `c` (highest power first, c[0] ≠ 0): the eigenvalues of its
+/// The roots of polynomial `c` (highest power first, `c[0] ≠ 0`): the eigenvalues of its
 /// companion matrix.
 pub fn roots(c: &[f64]) -> Vec<nalgebra::Complex<f64>> {
     let n = c.len().saturating_sub(1);

@@ -205,7 +205,7 @@ pub fn run(p: &TwoMass, law: &Law, joint: &Joint, seed: u64, csv: &Path) -> Resu
 
 /// The growth rate σ of the least damped mode left after the step, read from the recording
 /// by linear prediction (Prony): the motor's encoder and the output's true angle, taken
-/// every [`DECIMATE`] ticks from 1 s after the step, obey one linear recurrence of the closed
+/// every 20 ms from 1 s after the step, obey one linear recurrence of the closed
 /// loop's order; its roots z give each mode's σ = ln|z|/Δt, however small its share of the
 /// motion. Unstable when σ > 0, the motor hit its torque limit, or the card faulted; stable
 /// when the motion has died into the encoders' resolution.
