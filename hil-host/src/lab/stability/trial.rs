@@ -250,7 +250,7 @@ const DECIMATE: usize = 20;
 /// The recurrence's order: the two-mass plant's four states and two to spare.
 const ORDER: usize = 6;
 
-/// The s-plane poles s = ln(z)/`dt` of the order-`p` recurrence y[k] = Σ a_i·y[k−i] + c
+/// The s-plane poles s = ln(z)/`dt` of the order-`p` recurrence `y[k] = Σ a_i·y[k−i] + c`
 /// shared by every channel (each with its own constant c), fitted by least squares.
 pub fn prony_poles(channels: &[Vec<f64>], p: usize, dt: f64) -> Option<Vec<Complex64>> {
     use nalgebra::{DMatrix, DVector};
