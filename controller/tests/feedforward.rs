@@ -199,3 +199,26 @@ fn the_guard_reads_non_colocated_gains_per_output_count() {
         );
     }
 }
+
+/// The position hold (a colocated PD on the motor encoder, used by the `HoldPosition`
+/// reaction) takes a non-colocated mode's gains to motor counts: with 8 output counts per
+/// motor count, the same raw gain per output count is 8 times the torque per motor count.
+#[test]
+fn the_hold_takes_non_colocated_gains_to_motor_counts() {
+    use controller::proto::Mode;
+    let mut s = ParamStore::new();
+    s.apply(&[
+        (p::MOTOR_COUNTS_PER_REV, 2304),
+        (p::GEAR_RATIO, 30 * 65_536),
+        (p::OUTPUT_COUNTS_PER_REV, 2304 * 30 * 8),
+        (p::KE, 8 * 65_536),
+        (p::BE, 800 * 65_536),
+        (p::ROTOR_INERTIA, 1_000_000),
+    ]);
+    let nc = config::build(&s, Some(Mode::PositionPdNonColocated)).expect("a valid set");
+    let co = config::build(&s, Some(Mode::PositionPdColocated)).expect("a valid set");
+    let ratio =
+        |a: controller::fixed_math::Gain, b: controller::fixed_math::Gain| a.to_f64() / b.to_f64();
+    assert!((ratio(nc.hold.pid.kp, co.hold.pid.kp) - 8.0).abs() < 1e-3);
+    assert!((ratio(nc.hold.pid.kd, co.hold.pid.kd) - 8.0).abs() < 1e-3);
+}

@@ -147,16 +147,20 @@ pub fn check_stability(s: &ParamStore, mode: Option<Mode>) -> Result<(), ConfigE
     if ke_raw == 0 && be_raw == 0 {
         return Ok(());
     }
+    // Motor rad per count of the encoder the law feeds back, and of the motor's (B1E and the
+    // viscous feed-forward act on ẋ1 in every mode).
+    let motor_rad_per_count =
+        core::f64::consts::TAU / f64::from(s.raw(p::MOTOR_COUNTS_PER_REV).max(1));
     let rad_per_count = if mode.is_some_and(|m| m.needs_output_encoder()) {
         let cpr = f64::from(s.raw(p::OUTPUT_COUNTS_PER_REV).max(1));
         core::f64::consts::TAU / cpr * q16(s.raw(p::GEAR_RATIO))
     } else {
-        let cpr = f64::from(s.raw(p::MOTOR_COUNTS_PER_REV).max(1));
-        core::f64::consts::TAU / cpr
+        motor_rad_per_count
     };
     let period_s = f64::from(s.raw(p::CONTROL_PERIOD)) * 1e-6;
     let ke_si = q16(ke_raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count;
-    let per_tick = |raw: i32| q16(raw) * MOTOR_TORQUE_NM_PER_LSB / rad_per_count * period_s;
+    let per_tick_on = |raw: i32, rad: f64| q16(raw) * MOTOR_TORQUE_NM_PER_LSB / rad * period_s;
+    let per_tick = |raw: i32| per_tick_on(raw, motor_rad_per_count);
     // A viscous friction feed-forward is +u·Bv·ẋ1: negative damping on the rotor, which the
     // input damping B1e offsets first and the law's Be after it (the friction it cancels acts
     // beyond the transmission, where the rotor's fast mode does not feel it). On the
@@ -167,7 +171,7 @@ pub fn check_stability(s: &ParamStore, mode: Option<Mode>) -> Result<(), ConfigE
     } else {
         0.0
     };
-    let be_si = per_tick(be_raw) - negative;
+    let be_si = per_tick_on(be_raw, rad_per_count) - negative;
     let inertia = f64::from(s.raw(p::ROTOR_INERTIA)) * 1e-9;
     let margin = 1.0 - f64::from(s.raw(p::STABILITY_MARGIN)) / 65536.0;
     units::pd_stability(
@@ -213,6 +217,14 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
     let be = per_rate(p::BE)?;
     let ki_t = gain(p::KI, f64::from(s.raw(p::KI)))?;
     let i_limit = s.raw(p::INTEGRATOR_LIMIT);
+    // Motor counts per count of the encoder the law feeds back (the joint taken as rigid).
+    let motor_counts_per_law_count = match mode {
+        Some(m) if m.needs_output_encoder() && s.raw(p::OUTPUT_COUNTS_PER_REV) > 0 => {
+            f64::from(s.raw(p::MOTOR_COUNTS_PER_REV)) * q16(s.raw(p::GEAR_RATIO))
+                / f64::from(s.raw(p::OUTPUT_COUNTS_PER_REV))
+        }
+        _ => 1.0,
+    };
     let feedback = match mode {
         Some(Mode::PositionPdNonColocated | Mode::ImpedanceNonColocated) => {
             if s.raw(p::OUTPUT_COUNTS_PER_REV) == 0 {
@@ -292,12 +304,22 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         // Transition: a linear ramp through zero velocity of half-width `FRICTION_DEADBAND`
         // (see laws::friction) — τc/ω_r as the slope.
         let w = f64::from(s.raw(p::FRICTION_DEADBAND).max(1)) * 16.0;
+        // On the setpoint's velocity in a non-colocated mode the velocity is in output
+        // counts/s: the ramp and the viscous term per motor count/s are scaled to it.
+        let per = if s.raw(p::FRICTION_SOURCE) == 1 {
+            motor_counts_per_law_count
+        } else {
+            1.0
+        };
         Some(FrictionConfig {
             tau_c_pos: s.raw(p::COULOMB_POS),
             tau_c_neg: s.raw(p::COULOMB_NEG),
-            slope_pos: gain(p::COULOMB_POS, f64::from(s.raw(p::COULOMB_POS)) / w)?,
-            slope_neg: gain(p::COULOMB_NEG, f64::from(s.raw(p::COULOMB_NEG)) / w)?,
-            viscous: per_rate(p::VISCOUS_POS)?,
+            slope_pos: gain(p::COULOMB_POS, f64::from(s.raw(p::COULOMB_POS)) / w * per)?,
+            slope_neg: gain(p::COULOMB_NEG, f64::from(s.raw(p::COULOMB_NEG)) / w * per)?,
+            viscous: gain(
+                p::VISCOUS_POS,
+                q16(s.raw(p::VISCOUS_POS)) / (16.0 * rate) * per,
+            )?,
             undercomp: factor(s.raw(p::UNDER_COMPENSATION)),
             limit: torque_limit,
             alpha: alpha(s.raw(p::FRICTION_FILTER)),
@@ -397,10 +419,14 @@ pub fn build(s: &ParamStore, mode: Option<Mode>) -> Result<CardConfig, ConfigErr
         velocity_limit: counts_per_s_to_law(s.raw(p::VELOCITY_LIMIT)),
         position_limits,
         output_torque_limit: s.raw(p::OUTPUT_TORQUE_LIMIT),
+        // The hold is colocated: a non-colocated mode's gains taken to motor counts.
         hold: PositionConfig {
             pid: PidConfig {
-                kp: ke,
-                kd: be,
+                kp: gain(p::KE, q16(s.raw(p::KE)) / motor_counts_per_law_count)?,
+                kd: gain(
+                    p::BE,
+                    q16(s.raw(p::BE)) / (16.0 * rate) / motor_counts_per_law_count,
+                )?,
                 ki_t: Gain::ZERO,
                 i_limit: 0,
                 tau_max: torque_limit,

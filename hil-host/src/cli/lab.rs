@@ -881,7 +881,8 @@ fn plant_loop(
         n,
         model.motor.counts_per_rev.value,
         model.plant.gear_ratio.value,
-    );
+    )
+    .with_output_encoder(model.sensors.output_counts_per_rev.value.round());
     if let Some(p) = &a.csv {
         rec.write_csv(p)?;
     }

@@ -6,8 +6,8 @@
 //! (the gain times the gap) holds on one flank.
 //!
 //! The presets cannot show it as they are: they put the whole assumed input inertia
-//! (1.875e-3 kg·m²) on the motor side of the gap, so the inertia changes by 3 % across it
-//! where the thesis's changes "≈10×", and their transmission spring is soft enough that the
+//! (1.875e-3 kg·m²) on the motor side of the gap, so the inertia changes by 3 % (cyclo-29)
+//! or 27 % (kamo-ball-10) across it where the thesis's changes "≈10×", and their transmission spring is soft enough that the
 //! rotor against it is a mode of its own. The experiment's joint is the preset with the
 //! thesis's rotor of Fig 3.3.21 (1e-5 kg·m²) alone before the gap, the load beyond it, and the
 //! transmission as a stiff contact (the engaged joint the analysis treats as rigid). Friction,
@@ -154,8 +154,8 @@ pub struct Experiment {
     pub engaged_bound: f64,
     /// The cycle vs the gap's width (no preload).
     pub widths: Vec<Cycle>,
-    /// The gap the preload sweep holds (the preset's own, or 0.2° where the motor could not
-    /// hold τb of the preset's).
+    /// The gap the preload sweep holds: the preset's own, or, where the motor could not hold
+    /// τb of that, the smaller of 0.2° and the widest whose τb it can.
     pub preload_gap_deg: f64,
     /// τb = Kd·ε for that gap, output N·m.
     pub tau_b: f64,

@@ -193,7 +193,8 @@ impl Lab {
                 opts.node,
                 scenario.scale.motor_cpr(),
                 scenario.scale.gear_ratio(),
-            ),
+            )
+            .with_output_encoder(f64::from(scenario.scale.card.output_cpr)),
             supervisor,
             card_bus: link(Node::Card, 1),
             plant_bus: link(Node::Plant, 2),

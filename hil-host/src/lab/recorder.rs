@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use controller::proto::scale::{self, MOTOR_TORQUE_NM_PER_LSB, OUTPUT_TORQUE_NM_PER_LSB};
-use controller::proto::{FaultCode, Message, NodeId, State};
+use controller::proto::{ControlWord, FaultCode, Message, NodeId, State};
 
 use jointlab_can::bus::{BusFault, ClassicFrame};
 use jointlab_can::candump::{CandumpWriter, Timestamp};
@@ -155,6 +155,10 @@ pub struct Recorder {
     node: NodeId,
     motor_rad_per_count: f64,
     output_rad_per_motor_count: f64,
+    /// Output rad per output-encoder count, when the joint has one.
+    output_rad_per_count: Option<f64>,
+    /// The card was last enabled in a non-colocated mode.
+    non_colocated: bool,
     setpoint_pos: f64,
     setpoint_torque: f64,
     vel_est: f64,
@@ -175,6 +179,8 @@ impl Recorder {
             node,
             motor_rad_per_count: r,
             output_rad_per_motor_count: r / n,
+            output_rad_per_count: None,
+            non_colocated: false,
             setpoint_pos: 0.0,
             setpoint_torque: 0.0,
             vel_est: 0.0,
@@ -185,6 +191,14 @@ impl Recorder {
             last_flush: Instant::now(),
             tally: Tally::default(),
         }
+    }
+
+    /// The joint's output encoder (counts per output rev), for the setpoints of the
+    /// non-colocated modes, which the recorder learns from the `Enable` it sees.
+    pub fn with_output_encoder(mut self, counts_per_rev: f64) -> Self {
+        self.output_rad_per_count =
+            (counts_per_rev > 0.0).then(|| std::f64::consts::TAU / counts_per_rev);
+        self
     }
 
     fn open_sink(path: &Path, temp: Option<tempfile::TempPath>) -> Result<Sink> {
@@ -279,7 +293,15 @@ impl Recorder {
         }
         match m {
             Message::SetpointMotion(s) => {
-                self.setpoint_pos = f64::from(s.position) * self.output_rad_per_motor_count
+                // In the non-colocated modes the position is in output counts (protocol).
+                let per_count = match self.output_rad_per_count {
+                    Some(r) if self.non_colocated => r,
+                    _ => self.output_rad_per_motor_count,
+                };
+                self.setpoint_pos = f64::from(s.position) * per_count
+            }
+            Message::ControlWord(ControlWord::Enable(mode)) => {
+                self.non_colocated = mode.needs_output_encoder()
             }
             Message::SetpointForce(s) => {
                 self.setpoint_torque = f64::from(s.output_torque) * OUTPUT_TORQUE_NM_PER_LSB

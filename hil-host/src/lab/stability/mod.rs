@@ -406,13 +406,13 @@ const CEILING_BE: [f64; 8] = [
 ];
 
 /// The damping-ratio ceiling (§2.4): P force control in contact with input-velocity damping
-/// at Ke = [`CEILING_KE`]; as the damping grows, the dominant pair's ζ rises toward the open
-/// loop's and no further.
+/// at Ke = [`CEILING_KE`]. The thesis: the dominant pair's ζ approaches an asymptote and
+/// does not rise above the open loop's. Here it dips, then returns to the held-rotor value.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Ceiling {
     /// Per damping value.
     pub points: Vec<CeilingPoint>,
-    /// ζ of the open loop's least damped mode (no control).
+    /// ζ of the open loop's least damped pair (no control).
     pub open_loop: f64,
     /// ζ of the output's mode against the surface with the rotor held (Be → ∞).
     pub asymptote: f64,
@@ -450,7 +450,13 @@ pub fn ceiling(seed: u64, out: &Path, tick: impl Fn() + Sync) -> Result<Ceiling>
         })
         .collect::<Result<Vec<_>>>()?;
     let open = routh::characteristic(&p, &Law::ForceInputDamping { ke: 0.0, be: 0.0 });
-    let open_loop = routh::dominant(&routh::roots(&open)).map_or(f64::NAN, |d| d.0);
+    // The open loop's least damped pair (on these plants both pairs decay at one rate,
+    // B1/I1 = B2/I2, so "closest to the axis" would be a tie).
+    let open_loop = routh::roots(&open)
+        .iter()
+        .filter(|s| s.im > 0.0)
+        .map(|s| -s.re / s.norm())
+        .fold(f64::NAN, f64::min);
     let asymptote = p.b2 / (2.0 * ((p.kt + p.kf) * p.j2).sqrt());
     Ok(Ceiling {
         points,

@@ -75,8 +75,9 @@ pub fn characteristic(p: &TwoMass, law: &Law) -> [f64; 5] {
     c
 }
 
-/// The Routh array's first column for polynomial `c` (highest power first). A zero pivot is
-/// replaced by a tiny positive number (the textbook ε), which decides the sign of what follows.
+/// The Routh array's first column for polynomial `c` (highest power first). It stops at a
+/// zero pivot, whose 0 it keeps: a root on (or mirrored about) the imaginary axis, which
+/// [`stable`] reads as not stable.
 pub fn first_column(c: &[f64]) -> Vec<f64> {
     let n = c.len();
     let width = n.div_ceil(2);
@@ -84,27 +85,25 @@ pub fn first_column(c: &[f64]) -> Vec<f64> {
     for (k, v) in c.iter().enumerate() {
         rows[k % 2][k / 2] = *v;
     }
-    let scale = c
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()))
-        .max(f64::MIN_POSITIVE);
+    let mut column: Vec<f64> = rows.iter().take(2.min(n)).map(|r| r[0]).collect();
     for r in 2..n {
-        let mut pivot = rows[r - 1][0];
+        let pivot = rows[r - 1][0];
         if pivot == 0.0 {
-            pivot = 1e-12 * scale;
-            rows[r - 1][0] = pivot;
+            return column;
         }
         for k in 0..width {
             rows[r][k] = (pivot * rows[r - 2][k + 1] - rows[r - 2][0] * rows[r - 1][k + 1]) / pivot;
         }
+        column.push(rows[r][0]);
     }
-    rows.iter().map(|r| r[0]).collect()
+    column
 }
 
-/// Every root in the open left half-plane: the first column's entries all positive (for a
-/// positive leading coefficient).
+/// Every root in the open left half-plane: the first column complete and all positive (for
+/// a positive leading coefficient).
 pub fn stable(c: &[f64]) -> bool {
-    first_column(c).iter().all(|v| *v > 0.0)
+    let col = first_column(c);
+    col.len() == c.len() && col.iter().all(|v| *v > 0.0)
 }
 
 /// The largest gain in `lo..hi` below which `stable_at` holds, found by bisection in log
@@ -175,8 +174,8 @@ pub fn roots(c: &[f64]) -> Vec<nalgebra::Complex<f64>> {
     m.complex_eigenvalues().iter().copied().collect()
 }
 
-/// The dominant pair among `poles`: of those that oscillate, the one decaying slowest, as
-/// (ζ, ωn in rad/s). `None` when no pole oscillates.
+/// The dominant pair among `poles`: of those that oscillate, the one closest to the
+/// imaginary axis (decaying slowest), as (ζ, ωn in rad/s). `None` when no pole oscillates.
 pub fn dominant(poles: &[nalgebra::Complex<f64>]) -> Option<(f64, f64)> {
     poles
         .iter()
@@ -323,6 +322,9 @@ mod tests {
             let by_roots = roots(&c).iter().all(|s| s.re < 0.0);
             assert_eq!(stable(&c), by_roots, "{c:?}: {:?}", roots(&c));
         }
+        // Roots on the imaginary axis are not stable: s² + 1 and (s² + 1)(s + 1)².
+        assert!(!stable(&[1.0, 0.0, 1.0]));
+        assert!(!stable(&[1.0, 2.0, 2.0, 2.0, 1.0]));
         // (s + 1)(s + 2)(s² + 2s + 5): roots −1, −2, −1 ± 2j.
         let mut r: Vec<(f64, f64)> = roots(&[1.0, 5.0, 13.0, 19.0, 10.0])
             .iter()

@@ -53,7 +53,7 @@ pub struct Verdict {
     /// Growth rate of the motor's motion in the run's second half, 1/s (NaN if the run
     /// saturated before it).
     pub sigma: f64,
-    /// The least damped oscillating pair's (ζ, ωn in rad/s), if any.
+    /// The dominant oscillating pair's (ζ, ωn in rad/s), if any (see `routh::dominant`).
     pub dominant: Option<(f64, f64)>,
     /// The motor reached its torque limit or the card faulted.
     pub saturated: bool,
@@ -243,8 +243,8 @@ pub fn judge(rows: &[Row], t_step: f64, max_torque: f64, ratio: f64) -> Verdict 
     }
 }
 
-/// Ticks between the samples the recurrence is fitted to: 20 ms, ten samples a period of
-/// the plant's fastest mode (3.5 Hz), while the card's own fast dynamics (its 100 Hz observer,
+/// Ticks between the samples the recurrence is fitted to: 20 ms, 28 samples a period of
+/// the plants' fastest mode (1.8 Hz), while the card's own fast dynamics (its 100 Hz observer,
 /// a tick of latency) and the encoders' quantisation average out between samples.
 const DECIMATE: usize = 20;
 /// The recurrence's order: the two-mass plant's four states and two to spare.
