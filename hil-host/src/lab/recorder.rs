@@ -551,6 +551,38 @@ impl Iterator for RowReader {
 mod tests {
     use super::*;
 
+    /// A setpoint is in motor counts, or in output counts once the card was enabled in a
+    /// non-colocated mode (protocol, "Modes"); the log gives output radians either way.
+    #[test]
+    fn setpoints_follow_the_encoder_the_mode_feeds_back() {
+        use controller::proto::{ControlWord, Mode, SetpointMotion};
+        let node = NodeId::new(1).unwrap();
+        let (motor_cpr, n, output_cpr) = (2304.0, 30.0, 1_048_576.0);
+        let mut rec = Recorder::new(node, motor_cpr, n).with_output_encoder(output_cpr);
+        let send = |rec: &mut Recorder, m: Message| {
+            let f: ClassicFrame = m.encode(node).unwrap();
+            rec.observe(0.0, &f).unwrap();
+        };
+        let sp = Message::SetpointMotion(SetpointMotion {
+            position: 100_000,
+            velocity_ff: 0,
+            torque_ff: 0,
+        });
+        let tau = std::f64::consts::TAU;
+        for (mode, per_count) in [
+            (Mode::PositionPdColocated, tau / motor_cpr / n),
+            (Mode::PositionPdNonColocated, tau / output_cpr),
+            (Mode::ImpedanceColocated, tau / motor_cpr / n),
+        ] {
+            send(&mut rec, Message::ControlWord(ControlWord::Enable(mode)));
+            send(&mut rec, sp);
+            assert!(
+                (rec.setpoint_pos / (100_000.0 * per_count) - 1.0).abs() < 1e-12,
+                "{mode:?}"
+            );
+        }
+    }
+
     fn row(k: u64) -> Row {
         Row {
             time_s: k as f64 / 1000.0,
