@@ -312,9 +312,11 @@ fn pct(k: usize, n: usize) -> String {
 
 fn describe(o: &Outcome) -> String {
     format!(
-        "seed {} ρ {:.2} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
+        "seed {} ρ {:.2}{} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
         o.seed,
         o.rho,
+        o.rho_beyond_offset
+            .map_or(String::new(), |r| format!(" (beyond an offset {r:.2})")),
         o.rate_hz,
         o.encoder_bits,
         o.excitation,
@@ -394,10 +396,7 @@ fn report(results: &[&Done], fails: bool) {
                 let mid: Vec<_> = of.iter().filter(|o| o.rho >= 0.5 && o.rho < 1.0).collect();
                 let r1 = hi.iter().filter(|o| o.rank1_ok()).count();
                 let r2 = mid.iter().filter(|o| o.rank1_ok()).count();
-                let vd = hi
-                    .iter()
-                    .filter(|o| o.error.is_none() && o.verdict.as_deref() == Some(f))
-                    .count();
+                let vd = hi.iter().filter(|o| o.verdict_ok()).count();
                 let fit = of.iter().filter(|o| o.refit_ok(refit_bar(f))).count();
                 (a1, n1, a2, n2, rf, nf) = (
                     a1 + r1,

@@ -138,6 +138,9 @@ pub struct Trial {
     /// family is judged as: with the transmission's spring for compliance, on both encoders
     /// for backlash (fitted on the measured deflection), rigid otherwise.
     pub floor_val_refit: f64,
+    /// A gravity trial's strength beyond what a constant explains ([`referee::excess_with`]
+    /// over the floor); `None` for the other families.
+    pub rho_beyond_offset: Option<f64>,
 }
 
 impl Trial {
@@ -226,6 +229,10 @@ pub fn generate_in(
     };
     let floor_val_refit = referee::floor_on(&val, fc, path);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
+    // Gravity whose period is long against the record's travel is an offset to any data:
+    // how much of it a constant cannot explain, from the truth.
+    let rho_beyond_offset = (families == [Family::Gravity])
+        .then(|| referee::excess_with(&est, fc, coulomb, true) / floor_est);
     let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
     if !families.is_empty() && !in_reach {
         return Err(Skip::Strength(rho));
@@ -242,6 +249,7 @@ pub fn generate_in(
         floor_est,
         floor_val,
         floor_val_refit,
+        rho_beyond_offset,
     })
 }
 
@@ -321,14 +329,40 @@ pub struct Outcome {
     /// the step after compliance (a gap behind a spring, from the motor encoder alone).
     #[serde(default)]
     pub backlash_after_compliance: Option<bool>,
+    /// Gravity trials: the strength of what a constant cannot explain ([`Trial`]'s).
+    #[serde(default)]
+    pub rho_beyond_offset: Option<f64>,
 }
+
+/// Below this strength beyond a constant, a gravity trial's record cannot tell gravity from
+/// an offset, and rank 1 `offset` is right.
+pub const GRAVITY_AS_OFFSET: f64 = 0.5;
 
 impl Outcome {
     /// Rank-1 candidate is the hidden effect.
     pub fn rank1_ok(&self) -> bool {
         self.error.is_none()
             && self.families.len() == 1
-            && self.top.as_ref() == self.families.first()
+            && (self.top.as_ref() == self.families.first() || self.gravity_seen_as_offset())
+    }
+    /// The verdict (the significant missing effect) is the hidden one.
+    pub fn verdict_ok(&self) -> bool {
+        self.error.is_none()
+            && self.families.len() == 1
+            && (self.verdict.as_ref() == self.families.first()
+                || self.offset_for_gravity(self.verdict.as_deref()))
+    }
+    /// A gravity trial named `offset` whose gravity a constant explains to within
+    /// [`GRAVITY_AS_OFFSET`] of the floor: the record holds no more than an offset.
+    pub fn gravity_seen_as_offset(&self) -> bool {
+        self.offset_for_gravity(self.top.as_deref())
+    }
+    fn offset_for_gravity(&self, named: Option<&str>) -> bool {
+        self.families == ["gravity"]
+            && named == Some("offset")
+            && self
+                .rho_beyond_offset
+                .is_some_and(|r| r < GRAVITY_AS_OFFSET)
     }
     /// Null trial stayed quiet.
     pub fn null_ok(&self) -> bool {
@@ -483,6 +517,7 @@ pub fn run(
         error: None,
         floors: None,
         backlash_after_compliance: None,
+        rho_beyond_offset: t.rho_beyond_offset,
     };
     match catch_unwind(AssertUnwindSafe(|| judge(&t, &mut out))) {
         Ok(Ok(())) => {}

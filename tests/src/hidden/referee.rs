@@ -140,6 +140,12 @@ fn floor_with(rec: &TruthRecord, cutoff_hz: f64, path: NoisePath) -> f64 {
 /// RMS of what the start model cannot explain of `rec`'s noise-free joint (see the module
 /// docs), at the cut-off `cutoff_hz`; `coulomb` adds the start model's Coulomb friction.
 pub fn excess(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
+    excess_with(rec, cutoff_hz, coulomb, false)
+}
+
+/// [`excess`] with a constant torque allowed as well (`constant`): what of the hidden
+/// effect an offset could not explain either.
+pub fn excess_with(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool, constant: bool) -> f64 {
     let h = rec.fine_dt;
     let n = rec.fine_position.len().min(rec.fine_command.len());
     if n < 16 || h <= 0.0 {
@@ -174,6 +180,9 @@ pub fn excess(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
             .map(|v| (v + slope).signum())
             .collect();
         cols.push(filter(&raw_v, |f| Complex64::new(lowpass(f, fc), 0.0)));
+    }
+    if constant {
+        cols.push(vec![1.0; n]);
     }
     // Least squares on the interior, every sub-step (the band is far below the fine rate).
     let keep = interior(n, fc);
@@ -250,5 +259,14 @@ mod tests {
         let mut off = rec.clone();
         off.fine_command.iter_mut().for_each(|u| *u += 0.05);
         assert!(excess(&off, 40.0, false) > 0.01);
+        // ... which a constant column explains; a torque varying with the position does not
+        // go away with it.
+        assert!(excess_with(&off, 40.0, false, true) < 1e-3 * 0.05);
+        let mut grav = rec.clone();
+        let (x, u) = (grav.fine_position.clone(), &mut grav.fine_command);
+        u.iter_mut()
+            .zip(&x)
+            .for_each(|(u, x)| *u += 0.05 * (3.0 * x).sin());
+        assert!(excess_with(&grav, 40.0, false, true) > 0.01);
     }
 }
