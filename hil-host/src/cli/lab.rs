@@ -724,10 +724,12 @@ fn stability_demo(a: &DemoArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "\nstability — the thesis's stability maps on the lab (two-mass plant, I1 = I2 = {} \
-         kg·m², KT = {} N·m/rad, Kf = {} N·m/rad in contact, output-referred), seed {}",
-        stability::FREE.j1,
+        "\nstability — the thesis's stability maps on the lab (two-mass plant, output-referred: \
+         KT = {} N·m/rad; I1 = I2 = {} kg·m² free and against Kf = KT, {} kg·m² against \
+         Kf = {} N·m/rad), seed {}",
         stability::FREE.kt,
+        stability::FREE.j1,
+        stability::CONTACT.j1,
         stability::CONTACT.kf,
         a.seed
     );
