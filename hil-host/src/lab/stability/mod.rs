@@ -8,6 +8,7 @@
 
 mod plot;
 pub mod routh;
+pub mod sampled;
 pub mod trial;
 
 use std::path::{Path, PathBuf};
@@ -105,6 +106,9 @@ pub struct Point {
     pub thesis: Option<Edge>,
     /// The Routh criterion on the quartic.
     pub routh: Edge,
+    /// The same law sampled as the card runs it (zero-order hold, backward differences at
+    /// 1 ms): what the sampling alone moves.
+    pub sampled: Edge,
     /// The lab.
     pub lab: Edge,
     /// Lab runs it took.
@@ -117,6 +121,11 @@ impl Point {
     pub fn error(&self) -> Option<f64> {
         let reference = self.thesis.unwrap_or(self.routh).at()?;
         Some(self.lab.at()? / reference - 1.0)
+    }
+
+    /// The lab's boundary over the sampled analysis' − 1, where both are in range.
+    pub fn sampled_error(&self) -> Option<f64> {
+        Some(self.lab.at()? / self.sampled.at()? - 1.0)
     }
 }
 
@@ -363,6 +372,15 @@ fn point(j: &Job, seed: u64, csv: &Path, tick: &(impl Fn() + Sync)) -> Result<Po
         ),
         j.hi,
     );
+    let sampled = Edge::from(
+        routh::boundary(
+            |g| sampled::stable(&j.plant, &law(j.x, g)),
+            j.lo,
+            j.hi,
+            1e-6,
+        ),
+        j.hi,
+    );
     let thesis = j
         .closed
         .map(|f| Edge::from(f(&j.plant, j.x).filter(|g| *g > j.lo), j.hi));
@@ -392,6 +410,7 @@ fn point(j: &Job, seed: u64, csv: &Path, tick: &(impl Fn() + Sync)) -> Result<Po
         x: j.x,
         thesis,
         routh,
+        sampled,
         lab: Edge::from(lab, j.hi),
         runs: runs.get(),
     })
@@ -543,18 +562,20 @@ pub fn table(maps: &[Map]) -> String {
         for c in &m.curves {
             s += &format!("    {}\n", c.name);
             s += &format!(
-                "      {:>10} {:>14} {:>14} {:>14} {:>8}\n",
-                "x", "closed form", "Routh", "lab", "lab err"
+                "      {:>10} {:>13} {:>13} {:>13} {:>13} {:>8} {:>8}\n",
+                "x", "closed form", "Routh", "sampled", "lab", "vs cont.", "vs samp."
             );
+            let pct = |e: Option<f64>| e.map_or("—".into(), |e| format!("{:+.1} %", 100.0 * e));
             for p in &c.points {
                 s += &format!(
-                    "      {:>10} {:>14} {:>14} {:>14} {:>8}\n",
+                    "      {:>10} {:>13} {:>13} {:>13} {:>13} {:>8} {:>8}\n",
                     format!("{}", p.x),
                     p.thesis.map_or("—".into(), |e| e.show(m.y_scale)),
                     p.routh.show(m.y_scale),
+                    p.sampled.show(m.y_scale),
                     p.lab.show(m.y_scale),
-                    p.error()
-                        .map_or("—".into(), |e| format!("{:+.1} %", 100.0 * e)),
+                    pct(p.error()),
+                    pct(p.sampled_error()),
                 );
             }
         }

@@ -136,6 +136,20 @@ where
             .map_err(|e| anyhow!("{e}"))?
             .label(format!("{}: lab", m.curves[i].name))
             .legend(move |(x, y)| Circle::new((x + 9, y), 5, colour.stroke_width(2)));
+        let sampled: Vec<(f64, f64)> = m.curves[i]
+            .points
+            .iter()
+            .filter_map(|p| Some((p.x, p.sampled.at()? * m.y_scale)))
+            .collect();
+        chart
+            .draw_series(
+                sampled
+                    .into_iter()
+                    .map(move |p| Cross::new(p, 5, colour.stroke_width(1))),
+            )
+            .map_err(|e| anyhow!("{e}"))?
+            .label(format!("{}: sampled at 1 ms", m.curves[i].name))
+            .legend(move |(x, y)| Cross::new((x + 9, y), 5, colour.stroke_width(1)));
     }
     // Where each map's curves leave room.
     let corner = if m.name == "impedance" {

@@ -41,7 +41,7 @@ pub enum Law {
 impl Law {
     /// The law as feedback τ = −(p1 + d1·s)·x1 − (p2 + d2·s)·x2 on the plant `p`:
     /// (p1, d1, p2, d2). τenv = Kf·x2.
-    fn feedback(&self, p: &TwoMass) -> (f64, f64, f64, f64) {
+    pub(super) fn feedback(&self, p: &TwoMass) -> (f64, f64, f64, f64) {
         match *self {
             Law::PdColocated { ke, be } => (ke, be, 0.0, 0.0),
             Law::PdNonColocated { ke, be } => (0.0, 0.0, ke, be),
