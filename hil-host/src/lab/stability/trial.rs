@@ -105,9 +105,18 @@ pub fn scenario(p: &TwoMass, law: &Law, joint: &Joint, model: &Model) -> Result<
         stability_fraction: 1.0,
         ..GainSet::default()
     };
-    let (mode, gains, target) = match *law {
-        Law::PdColocated { ke, be } => (
-            Mode::PositionPdColocated,
+    let mode = match law {
+        Law::PdColocated { .. } => Mode::PositionPdColocated,
+        Law::PdNonColocated { .. } => Mode::PositionPdNonColocated,
+        Law::ForceInputDamping { .. } => Mode::ForceP,
+        Law::ForceRate { .. } => Mode::ForcePd,
+        Law::ImpedanceColocated { .. } => Mode::ImpedanceColocated,
+        Law::ImpedanceNonColocated { .. } => Mode::ImpedanceNonColocated,
+    };
+    // The card's force gains are motor N·m per output N·m: the thesis's output-referred Ke
+    // is N times that.
+    let (gains, target) = match *law {
+        Law::PdColocated { ke, be } | Law::PdNonColocated { ke, be } => (
             GainSet {
                 stiffness: ke,
                 damping: be,
@@ -115,19 +124,16 @@ pub fn scenario(p: &TwoMass, law: &Law, joint: &Joint, model: &Model) -> Result<
             },
             Target::Position,
         ),
-        Law::PdNonColocated { ke, be } => (
-            Mode::PositionPdNonColocated,
+        Law::ImpedanceColocated { ke, be, km } | Law::ImpedanceNonColocated { ke, be, km } => (
             GainSet {
                 stiffness: ke,
                 damping: be,
+                km,
                 ..base
             },
             Target::Position,
         ),
-        // The card's force gains are motor N·m per output N·m: the thesis's output-referred
-        // Ke is N times that.
         Law::ForceInputDamping { ke, be } => (
-            Mode::ForceP,
             GainSet {
                 force_kp: ke / n,
                 input_damping: be,
@@ -136,33 +142,12 @@ pub fn scenario(p: &TwoMass, law: &Law, joint: &Joint, model: &Model) -> Result<
             Target::Force,
         ),
         Law::ForceRate { ke, be } => (
-            Mode::ForcePd,
             GainSet {
                 force_kp: ke / n,
                 force_kd: be / n,
                 ..base
             },
             Target::Force,
-        ),
-        Law::ImpedanceColocated { ke, be, km } => (
-            Mode::ImpedanceColocated,
-            GainSet {
-                stiffness: ke,
-                damping: be,
-                km,
-                ..base
-            },
-            Target::Position,
-        ),
-        Law::ImpedanceNonColocated { ke, be, km } => (
-            Mode::ImpedanceNonColocated,
-            GainSet {
-                stiffness: ke,
-                damping: be,
-                km,
-                ..base
-            },
-            Target::Position,
         ),
     };
     let to = match *law {
