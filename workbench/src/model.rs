@@ -372,6 +372,72 @@ impl Model {
         Ok(())
     }
 
+    /// The spring a backlash sits in, as its column needs it: compliance's mode seen by the
+    /// load with the motor held, (f₂, ζ₂) = (f, ζ)/√(1 + J2/J1), J2/J1 from the split (the
+    /// motion form's ratio, or −α). `None` without compliance or while its split is no
+    /// two-mass joint (α ≥ 0): the gap then has a rigid contact.
+    pub fn gap_spring(&self) -> Option<(f64, f64)> {
+        let c = self
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Compliance)?;
+        let s = &c.shape;
+        let ratio = if s.compliance_near_inertia > 0.0 {
+            s.compliance_ratio
+        } else {
+            -c.params.first()?.value
+        };
+        let k = (1.0 + ratio).sqrt();
+        (ratio > 0.0 && k.is_finite() && s.compliance_frequency > 0.0)
+            .then(|| (s.compliance_frequency / k, s.compliance_damping / k))
+    }
+
+    /// Give a backlash `shape` the spring of this model ([`Model::gap_spring`]; none: a rigid
+    /// contact). One place decides what a gap in this model sits in, for the model's own
+    /// backlash and for a backlash candidate alike.
+    pub fn place_gap(&self, kind: EffectKind, shape: &mut Shape) {
+        if kind == EffectKind::Backlash {
+            let (f, z) = self.gap_spring().unwrap_or((0.0, 0.0));
+            shape.backlash_spring_frequency = f;
+            shape.backlash_spring_damping = z;
+        }
+    }
+
+    /// [`Model::place_gap`] on the model's own backlash.
+    pub fn sync_gap_spring(&mut self) {
+        let spring = self.gap_spring().unwrap_or((0.0, 0.0));
+        for e in self
+            .effects
+            .iter_mut()
+            .filter(|e| e.kind == EffectKind::Backlash)
+        {
+            e.shape.backlash_spring_frequency = spring.0;
+            e.shape.backlash_spring_damping = spring.1;
+        }
+    }
+
+    /// Index in [`Model::params`] of a backlash's load inertia that compliance's split also
+    /// names (both effects in the model), and the J2 that split gives now: the one number
+    /// the file holds for both ([`Model::physical_split`]), so a refit ties the first to the
+    /// second.
+    pub fn tied_load_inertia(&self) -> Option<(usize, f64)> {
+        let alpha = self
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Compliance)?
+            .params
+            .first()?
+            .value;
+        let mut index = 1;
+        for e in &self.effects {
+            if e.kind == EffectKind::Backlash && !e.params.is_empty() {
+                return Some((index, load_inertia_of_split(self.inertia.value, alpha)));
+            }
+            index += e.params.len();
+        }
+        None
+    }
+
     /// The equation-error view of a simulator model.
     ///
     /// Fails for a model whose rigid inertia is not positive (nothing to fit against), and

@@ -343,14 +343,24 @@ impl Outcome {
     pub fn rank1_ok(&self) -> bool {
         self.error.is_none()
             && self.families.len() == 1
-            && (self.top.as_ref() == self.families.first() || self.gravity_seen_as_offset())
+            && (self.top.as_ref() == self.families.first()
+                || self.gravity_seen_as_offset()
+                || self.gap_after_spring(self.top.as_deref()))
     }
     /// The verdict (the significant missing effect) is the hidden one.
     pub fn verdict_ok(&self) -> bool {
         self.error.is_none()
             && self.families.len() == 1
             && (self.verdict.as_ref() == self.families.first()
-                || self.offset_for_gravity(self.verdict.as_deref()))
+                || self.offset_for_gravity(self.verdict.as_deref())
+                || self.gap_after_spring(self.verdict.as_deref()))
+    }
+    /// A backlash trial named `compliance` whose `--auto` then added backlash as the next
+    /// step: a gap behind a spring, named as the step after the spring (motor encoder only).
+    fn gap_after_spring(&self, named: Option<&str>) -> bool {
+        self.families == ["backlash"]
+            && named == Some("compliance")
+            && self.backlash_after_compliance == Some(true)
     }
     /// A gravity trial named `offset` whose gravity a constant explains to within
     /// [`GRAVITY_AS_OFFSET`] of the floor: the record holds no more than an offset.
@@ -429,6 +439,9 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
         let added: Vec<Option<String>> =
             run.steps.iter().skip(1).map(|s| s.added.clone()).collect();
         if debug {
+            for s in &run.steps {
+                eprintln!("  step {}: {:?} — {}", s.step, s.added, s.verdict);
+            }
             eprintln!(
                 "--auto after compliance: {added:?}, stop: {}\n{}",
                 run.stop,

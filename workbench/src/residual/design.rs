@@ -372,8 +372,92 @@ pub fn noise_energy_sd(h: &[f64], sigma2: f64, rows: usize) -> f64 {
 /// only grows, so at most one refit per bounded parameter. A parameter held at its bound stays
 /// free in the model, with no 1σ (the fit did not estimate it; see [`Param::bound_reached`]).
 ///
+/// A backlash beside compliance shares the load inertia J2 with the compliance's split
+/// ([`Model::tied_load_inertia`]) and sits in its spring ([`Model::sync_gap_spring`]): J2 is
+/// held, the rest is linear in it, and the tie is the root of a quadratic.
+///
 /// [`Param::bound_reached`]: crate::model::Param::bound_reached
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
+    model.sync_gap_spring();
+    match model.tied_load_inertia() {
+        Some((i, _)) if model.params()[i].free => refit_tied(model, p, i),
+        _ => refit_bounded(model, p),
+    }
+}
+
+/// The refit with backlash's J2 (parameter `i`) tied to compliance's split: the split's J2 =
+/// J·r/(1 + r), r = −α, must equal the J2 the gap's column is scaled by. With J2 held, the
+/// rest of the fit is linear in it (the target is the input minus J2 times the gap's
+/// column), so two fits — at J2 = 0 and at the split's J2 of that fit — give J and α as
+/// lines in J2, and the tie is the root of a quadratic; a third fit at the root is the
+/// result. J2 is then written as the split of that fit exactly, and counts as fitted (no 1σ
+/// of its own: it is the split's).
+fn refit_tied(model: &mut Model, p: &Prepared, i: usize) -> Result<LsFit, fit::FitError> {
+    let alpha_at = model
+        .param_owners()
+        .iter()
+        .position(|o| *o == Some(EffectKind::Compliance));
+    let Some(a) = alpha_at else {
+        return refit_bounded(model, p);
+    };
+    model.params_mut()[i].free = false;
+    let at = |m: &mut Model, j2: f64| -> Result<(LsFit, f64, f64), fit::FitError> {
+        m.params_mut()[i].value = j2;
+        let f = refit_bounded(m, p)?;
+        let q = m.params();
+        Ok((f, q[0].value, q[a].value))
+    };
+    let result = (|| {
+        let (_, j0, a0) = at(model, 0.0)?;
+        let r0 = -a0;
+        let guess = j0 * r0 / (1.0 + r0);
+        let j2 = if guess.is_finite() && guess > 0.0 {
+            let (_, jg, ag) = at(model, guess)?;
+            let (jb, ab) = ((j0 - jg) / guess, (a0 - ag) / guess);
+            // (j0 − x·jb)·(−a0 + x·ab) = x·(1 − a0 + x·ab)
+            let qa = -(jb * ab + ab);
+            let qb = j0 * ab + jb * a0 - 1.0 + a0;
+            let qc = -j0 * a0;
+            tie_root(qa, qb, qc, guess)
+        } else {
+            0.0
+        };
+        let (f, _, _) = at(model, j2)?;
+        Ok(f)
+    })();
+    let tied = model.tied_load_inertia().map_or(f64::NAN, |t| t.1);
+    let q = &mut model.params_mut()[i];
+    q.free = true;
+    if result.is_ok() {
+        q.value = tied;
+        q.sigma = None;
+    }
+    result
+}
+
+/// The positive root of `qa·x² + qb·x + qc` nearest `guess` (`guess` itself when there is
+/// none: the fit's own split, untied by less than the gap's column moves it).
+fn tie_root(qa: f64, qb: f64, qc: f64, guess: f64) -> f64 {
+    let roots: Vec<f64> = if qa.abs() <= 1e-12 * (qb.abs() + qc.abs()) {
+        vec![-qc / qb]
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc < 0.0 {
+            Vec::new()
+        } else {
+            let sq = disc.sqrt();
+            vec![(-qb + sq) / (2.0 * qa), (-qb - sq) / (2.0 * qa)]
+        }
+    };
+    roots
+        .into_iter()
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .min_by(|x, y| (x - guess).abs().total_cmp(&(y - guess).abs()))
+        .unwrap_or(guess)
+}
+
+/// [`refit`] of the free parameters as they are (no tie).
+fn refit_bounded(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     let mut fit = refit_unbounded(model, p)?;
     let mut held = Vec::new();
     loop {
@@ -554,5 +638,85 @@ mod tests {
         assert!((g[(0, 0)] / scale / ga - 1.0).abs() < 1e-3, "{}", g[(0, 0)]);
         assert!((g[(1, 1)] / scale / gv - 1.0).abs() < 1e-3, "{}", g[(1, 1)]);
         assert!(g[(0, 1)].abs() < 1e-6 * g[(0, 0)], "{}", g[(0, 1)]);
+    }
+
+    /// A backlash beside compliance is refitted with its J2 tied to the split: the model is
+    /// one a file can hold, and its gap sits in compliance's spring (the locked-motor mode).
+    #[test]
+    fn backlash_beside_compliance_is_tied_to_the_split() {
+        let n = 6000;
+        let dt = 1e-3;
+        let uniform = crate::stats::tests_support::unit_uniform;
+        let q: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                (1.3 * t).sin() + 0.05 * (23.0 * t).sin() + 0.02 * (71.0 * t).sin()
+            })
+            .collect();
+        let u: Vec<f64> = (0..n as u64)
+            .map(|k| 0.3 * (1.3e-3 * k as f64).cos() + 0.05 * (uniform(k) - 0.5))
+            .collect();
+        let rec = Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|k| k as f64 * dt).collect(),
+            input: u,
+            output: q,
+            load_output: None,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: crate::data::Columns::new("u", "q"),
+            resampled: None,
+            recorded: None,
+        };
+        let p = Prepared::new(&rec, Some(40.0));
+        let mut m = Model::baseline();
+        m.add(
+            EffectKind::Compliance,
+            Shape {
+                compliance_frequency: 30.0,
+                compliance_damping: 0.1,
+                ..Shape::default()
+            },
+        );
+        refit(&mut m, &p).expect("compliance alone");
+        m.effects[1].params[0].value = -0.5;
+        m.effects[1].params[0].free = false;
+        m.add(
+            EffectKind::Backlash,
+            Shape {
+                backlash_width: 0.01,
+                backlash_load_time: 0.2,
+                ..Shape::default()
+            },
+        );
+        let f = refit(&mut m, &p).expect("tied refit");
+        assert!(f.rss.is_finite());
+        assert!(m.physical_split().is_ok(), "{:?}", m.physical_split());
+        let j2 = m.effects[2].params[0].value;
+        let split = m.inertia.value * 0.5 / 1.5;
+        assert!((j2 / split - 1.0).abs() < 1e-12, "{j2} vs {split}");
+        assert!(m.effects[2].params[0].free);
+        // The spring its column used: the coupled mode over √(1 + J2/J1).
+        let s = &m.effects[2].shape;
+        assert!((s.backlash_spring_frequency - 30.0 / 1.5f64.sqrt()).abs() < 1e-9);
+        assert!((s.backlash_spring_damping - 0.1 / 1.5f64.sqrt()).abs() < 1e-9);
+        // With a free compliance amplitude the tie holds as well (J and α move with J2).
+        m.effects[1].params[0].free = true;
+        refit(&mut m, &p).expect("tied refit, free split");
+        assert!(m.physical_split().is_ok() || m.effects[1].params[0].value >= 0.0);
+    }
+
+    /// The tie's quadratic: its positive root nearest the guess.
+    #[test]
+    fn tie_root_takes_the_positive_root_nearest_the_guess() {
+        // (x − 2)(x − 5) = x² − 7x + 10
+        assert!((tie_root(1.0, -7.0, 10.0, 1.0) - 2.0).abs() < 1e-12);
+        assert!((tie_root(1.0, -7.0, 10.0, 4.0) - 5.0).abs() < 1e-12);
+        // (x + 1)(x − 3): only 3 is positive.
+        assert!((tie_root(1.0, -2.0, -3.0, 0.1) - 3.0).abs() < 1e-12);
+        // Linear: 2x − 1 = 0.
+        assert!((tie_root(0.0, 2.0, -1.0, 9.0) - 0.5).abs() < 1e-12);
+        // No real root: the guess.
+        assert_eq!(tie_root(1.0, 0.0, 1.0, 0.7), 0.7);
     }
 }
