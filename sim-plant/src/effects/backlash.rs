@@ -22,7 +22,7 @@
 //! Amplitude: the load inertia J2 (kg·m², not a model parameter); shapes: the width b and τ.
 //! Behind a spring (a model that also holds compliance) the load is pushed through that
 //! spring instead, and the column is the gap's excess over the plain spring
-//! ([`spring_gap_excess`]), so that compliance's column and this one add up to the gap's
+//! (`spring_gap_excess`), so that compliance's column and this one add up to the gap's
 //! spring, as the simulator composes the two effects.
 //! Thesis-notes §7.13: flat dead zone of width b at torque reversal, load lags after reversal.
 
