@@ -175,6 +175,7 @@ pub const SEARCH_WINDOW: usize = 40_000;
 fn scan(
     kind: EffectKind,
     p: &Prepared,
+    path: Option<InputPath>,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
@@ -182,17 +183,9 @@ fn scan(
 ) -> Option<Scan> {
     let t = p.trajectory();
     let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW {
-        search(
-            kind,
-            &t,
-            x0,
-            g0i,
-            e,
-            p.input_probe.as_deref(),
-            p.input_noise_var,
-        )?
+        search(kind, &t, x0, g0i, e, path, p.input_noise_var)?
     } else {
-        search_windowed(kind, p, &t, x0, g0i, e)?
+        search_windowed(kind, p, path, &t, x0, g0i, e)?
     };
     Some(Scan {
         kind,
@@ -207,6 +200,7 @@ fn scan(
 fn search_windowed(
     kind: EffectKind,
     p: &Prepared,
+    path: Option<InputPath>,
     t: &Trajectory,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
@@ -227,11 +221,10 @@ fn search_windowed(
     let gw = gram_inverse(&gram(&xw));
     // The window's residual, made orthogonal to the window's regressors.
     let ew = fit::least_squares(&xw, &e[w.clone()]).ok()?.residual;
-    let probe = p.input_probe.as_deref();
-    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew, probe, p.input_noise_var)?;
+    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew, path, p.input_noise_var)?;
     let z = residual::candidate_columns_on(kind, t, &shape);
     let rss: f64 = e.iter().map(|v| v * v).sum();
-    let bias = input_noise_bias(kind, &shape, probe, p.input_noise_var, e.len(), rss);
+    let bias = input_noise_bias(kind, &shape, path, p.input_noise_var, e.len(), rss);
     let (dr, first) = delta_rss_signed(&z, x0, g0i, e, bias.as_slice());
     let dr = match kind.admissible_sign() {
         Some(sg) if first * sg <= 0.0 => 0.0,
@@ -248,7 +241,7 @@ fn search(
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
-    probe: Option<&Prepared>,
+    path: Option<InputPath>,
     input_noise_var: f64,
 ) -> Option<(Shape, f64, usize)> {
     // Where physics fixes the sign of the first amplitude, a shape whose fit has the wrong
@@ -262,7 +255,7 @@ fn search(
         if z.is_empty() {
             return None;
         }
-        let bias = input_noise_bias(kind, s, probe, input_noise_var, e.len(), rss);
+        let bias = input_noise_bias(kind, s, path, input_noise_var, e.len(), rss);
         let (dr, first) = delta_rss_signed(&z, x0, g0i, e, bias.as_slice());
         Some(match sign {
             Some(sg) if first * sg <= 0.0 => 0.0,
@@ -273,9 +266,10 @@ fn search(
 }
 
 /// What the recorded input's own noise puts into a candidate column built linearly from that
-/// input (compliance's command form `L·H·u`) and into the residual alike (`L·u`): their
-/// products' expectation, σ²·n·⟨h_z, h_e⟩, from the input probe's impulse responses
-/// (`Prepared::input_probe`). Without it such a column
+/// input (compliance's command form `L·H·u`) and into the residual alike (`L·u`, or the
+/// input τ late when the model holds a delay: [`InputPath`]): their products' expectation,
+/// σ²·n·⟨h_z, h_e⟩, from the input probe's impulse responses (`Prepared::input_probe`).
+/// Without it such a column
 /// "explains" the residual's share of white noise in its band — on a record at its noise
 /// floor a mode near the band's edge took 20 % of the residual at Holm p 3·10⁻⁸. σ² is the
 /// input's second-difference estimate, capped at what the residual could hold if it were all
@@ -284,20 +278,20 @@ fn search(
 fn input_noise_bias(
     kind: EffectKind,
     shape: &Shape,
-    probe: Option<&Prepared>,
+    path: Option<InputPath>,
     input_noise_var: f64,
     n: usize,
     rss: f64,
 ) -> Vec<NoiseBias> {
     let command_form = kind == EffectKind::Compliance && shape.compliance_near_inertia <= 0.0;
-    let Some(pr) = probe.filter(|_| command_form) else {
+    let Some(path) = path.filter(|_| command_form) else {
         return Vec::new();
     };
-    let hz = residual::candidate_columns_on(kind, &pr.trajectory(), shape);
+    let hz = residual::candidate_columns_on(kind, &path.probe.trajectory(), shape);
     let Some(h) = hz.first() else {
         return Vec::new();
     };
-    let he = &pr.input;
+    let he = path.residual;
     let ee: f64 = he.iter().map(|x| x * x).sum();
     if ee.is_nan() || ee <= 0.0 {
         return Vec::new();
@@ -310,6 +304,35 @@ fn input_noise_bias(
         cross: s2 * n * h.iter().zip(he).map(|(a, b)| a * b).sum::<f64>(),
         energy: 0.0,
     }]
+}
+
+/// The input probe (`Prepared::input_probe`) and the residual's response to it under the
+/// model: the recorded input low-passed, or applied τ late when the model holds a delay (its
+/// prediction is the recorded input delayed, so the input's noise reaches the residual τ
+/// late), and a command-form column shares it through its own response at lag τ.
+#[derive(Clone, Copy)]
+struct InputPath<'a> {
+    probe: &'a Prepared,
+    residual: &'a [f64],
+}
+
+/// The residual's response to the input probe `pr` under `model` (see [`InputPath`]): the
+/// probe's input less the input-delaying effects' columns at their fitted amplitudes.
+fn input_response(model: &Model, pr: &Prepared) -> Vec<f64> {
+    let mut he = pr.input.clone();
+    for e in model
+        .effects
+        .iter()
+        .filter(|e| e.kind.fit_traits().amplitude_by_search)
+    {
+        let amp = e.params.first().map_or(0.0, |q| q.value);
+        for c in residual::model_columns(e.kind, pr, &e.shape) {
+            for (h, x) in he.iter_mut().zip(&c) {
+                *h -= amp * x;
+            }
+        }
+    }
+    he
 }
 
 /// Expected noise terms of one candidate column (see [`motion_form_err`]): its product with
@@ -440,7 +463,11 @@ pub fn scan_shape(
     e: &[f64],
     rss: f64,
 ) -> Option<(Shape, f64)> {
-    scan(kind, p, x0, g0i, e, rss).map(|s| (s.shape, s.err))
+    let path = p.input_probe.as_deref().map(|probe| InputPath {
+        probe,
+        residual: &probe.input,
+    });
+    scan(kind, p, path, x0, g0i, e, rss).map(|s| (s.shape, s.err))
 }
 
 /// ERR of compliance in its *motion form* (`H₂·a`: the acceleration high-passed at the
@@ -602,12 +629,18 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             None => true,
         })
         .collect();
+    let probe_response = p.input_probe.as_deref().map(|pr| input_response(model, pr));
+    let path = p
+        .input_probe
+        .as_deref()
+        .zip(probe_response.as_deref())
+        .map(|(probe, residual)| InputPath { probe, residual });
     let scanned: Vec<(usize, Option<Scan>)> = {
         use rayon::prelude::*;
         kinds
             .par_iter()
             .enumerate()
-            .map(|(i, &k)| (i, scan(k, p, x0, &g0i, e, rss)))
+            .map(|(i, &k)| (i, scan(k, p, path, x0, &g0i, e, rss)))
             .collect()
     };
     for (i, sc) in scanned {
@@ -639,7 +672,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             let bias = input_noise_bias(
                 s.kind,
                 &s.shape,
-                p.input_probe.as_deref(),
+                path,
                 p.input_noise_var,
                 e.len(),
                 rss,

@@ -494,7 +494,10 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
                 .map(|v| v.rms / t.floor_val);
             if debug {
                 for s in &run.steps {
-                    eprintln!("step {}: {:?} rms {:.4e}", s.step, s.added, s.score.rms);
+                    eprintln!(
+                        "step {}: {:?} rms {:.4e} — {}",
+                        s.step, s.added, s.score.rms, s.verdict
+                    );
                 }
             }
         }
