@@ -669,14 +669,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             // The share of the explained energy that survives the input-noise correction
             // (`input_noise_bias`; 1 for columns without it) scales the statistic too.
             let z = &cols[x0.len()..];
-            let bias = input_noise_bias(
-                s.kind,
-                &s.shape,
-                path,
-                p.input_noise_var,
-                e.len(),
-                rss,
-            );
+            let bias = input_noise_bias(s.kind, &s.shape, path, p.input_noise_var, e.len(), rss);
             let survives = if bias.is_empty() {
                 1.0
             } else {
