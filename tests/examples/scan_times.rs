@@ -23,7 +23,7 @@ fn main() {
     let base = fit::least_squares(&d.cols, &d.y).unwrap();
     for k in EffectKind::ALL {
         let t0 = Instant::now();
-        let r = scan_shape(k, &p, &d.cols, &g0i, &base.residual, base.rss);
+        let r = scan_shape(k, &m, &p, &d.cols, &g0i, &base.residual, base.rss);
         println!(
             "{:<13} grid {:>4}  {:>7.1} ms  err {:?}",
             k.name(),

@@ -457,16 +457,19 @@ pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
 /// Best shape of one effect and its ERR against residual `e` of regressors `x0`.
 pub fn scan_shape(
     kind: EffectKind,
+    model: &Model,
     p: &Prepared,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
     rss: f64,
 ) -> Option<(Shape, f64)> {
-    let path = p.input_probe.as_deref().map(|probe| InputPath {
-        probe,
-        residual: &probe.input,
-    });
+    let response = p.input_probe.as_deref().map(|pr| input_response(model, pr));
+    let path = p
+        .input_probe
+        .as_deref()
+        .zip(response.as_deref())
+        .map(|(probe, residual)| InputPath { probe, residual });
     scan(kind, p, path, x0, g0i, e, rss).map(|s| (s.shape, s.err))
 }
 

@@ -20,10 +20,6 @@
 //! far edge is inelastic (the load takes on the motor's velocity if that pushes it faster).
 //! δ goes through the residual's low-pass before it is differentiated, as the motion did.
 //! Amplitude: the load inertia J2 (kg·m², not a model parameter); shapes: the width b and τ.
-//! Behind a spring (a model that also holds compliance) the load is pushed through that
-//! spring instead, and the column is the gap's excess over the plain spring
-//! (`spring_gap_excess`), so that compliance's column and this one add up to the gap's
-//! spring, as the simulator composes the two effects.
 //! Thesis-notes §7.13: flat dead zone of width b at torque reversal, load lags after reversal.
 
 use super::signal::{log_space, positive_or};
@@ -115,77 +111,6 @@ pub fn gap_deflection(position: &[f64], velocity: &[f64], b: f64, tau: f64, dt: 
     out
 }
 
-/// A gap behind a spring, seen from the motor: how much more the load lags than it would on
-/// the same spring without the gap, δ_gap − δ_lin. Both loads are driven by the measured motor
-/// (`position`, `velocity`, linear between samples) through the spring the shape names
-/// (`backlash_spring_frequency`, `backlash_spring_damping`: the load's mode with the motor
-/// held) and decay with the load's τ: `ẍ2 = ω₂²·e + 2ζ₂ω₂·(ẋ1 − ẋ2)·[engaged] − ẋ2/τ`, with
-/// e = dead_zone(x1 − x2, b/2) for one and e = x1 − x2 for the other. Its column is the part
-/// of the joint's remainder −J2·(δ̈ + δ̇/τ) that the spring alone (compliance, in the model
-/// beside it) does not explain, so the two columns add up to the gap's spring and share the
-/// amplitude J2; a closed gap gives a zero column.
-pub fn spring_gap_excess(position: &[f64], velocity: &[f64], shape: &Shape, dt: f64) -> Vec<f64> {
-    let n = position.len().min(velocity.len());
-    let half = 0.5 * shape.backlash_width.max(0.0);
-    let w = std::f64::consts::TAU * shape.backlash_spring_frequency;
-    let c = 2.0 * shape.backlash_spring_damping.max(0.0) * w;
-    let beta = if shape.backlash_load_time > 0.0 {
-        1.0 / shape.backlash_load_time
-    } else {
-        0.0
-    };
-    let mut out = Vec::with_capacity(n);
-    let (Some(&x0), Some(&v0)) = (position.first(), velocity.first()) else {
-        return out;
-    };
-    // Classic RK4 at ω₂·h ≤ 0.1 (and c·h, β·h ≤ 0.2), the motor linear between samples: a
-    // lightly damped load rattling in a gap is sensitive to its contact times, so a
-    // first-order step drifts from the true contacts within a second.
-    let rate = w.max(0.5 * c).max(0.5 * beta);
-    let sub = ((rate * dt / 0.1).ceil() as usize).clamp(1, 256);
-    let h = dt / sub as f64;
-    // Load acceleration for motor (x1, v1), load (x, v); `half` < 0: the plain spring.
-    let acc = |x1: f64, v1: f64, x: f64, v: f64, half: f64| {
-        let (e, on) = if half < 0.0 {
-            (x1 - x, 1.0)
-        } else {
-            let e = dead_zone(x1 - x, half);
-            (e, if e != 0.0 { 1.0 } else { 0.0 })
-        };
-        w * w * e + on * c * (v1 - v) - beta * v
-    };
-    let step = |(x, v): (f64, f64), m0: (f64, f64), mh: (f64, f64), m1: (f64, f64), half: f64| {
-        let a1 = acc(m0.0, m0.1, x, v, half);
-        let (x2, v2) = (x + 0.5 * h * v, v + 0.5 * h * a1);
-        let a2 = acc(mh.0, mh.1, x2, v2, half);
-        let (x3, v3) = (x + 0.5 * h * v2, v + 0.5 * h * a2);
-        let a3 = acc(mh.0, mh.1, x3, v3, half);
-        let (x4, v4) = (x + h * v3, v + h * a3);
-        let a4 = acc(m1.0, m1.1, x4, v4, half);
-        (
-            x + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-        )
-    };
-    // (position, velocity) of the load behind the gap and behind the plain spring.
-    let (mut gap, mut lin) = ((x0, v0), (x0, v0));
-    out.push(0.0);
-    for i in 1..n {
-        let (xa, va) = (position[i - 1], velocity[i - 1]);
-        let (dx, dv) = (position[i] - xa, velocity[i] - va);
-        let at = |f: f64| (xa + f * dx, va + f * dv);
-        for k in 0..sub {
-            let f = k as f64 / sub as f64;
-            let df = 1.0 / sub as f64;
-            let (m0, mh, m1) = (at(f), at(f + 0.5 * df), at(f + df));
-            gap = step(gap, m0, mh, m1, half);
-            lin = step(lin, m0, mh, m1, -1.0);
-        }
-        out.push(lin.0 - gap.0);
-    }
-    out
-}
-
 /// The backlash column `−(δ̈ + δ̇/τ)`: of the deflection δ = x_motor − x_load *measured*
 /// (both positions low-passed as the motion) when the trajectory has a load position, else of
 /// the low-passed [`gap_deflection`] estimated from the motor's motion alone.
@@ -201,12 +126,6 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let tau = shape.backlash_load_time;
     let d = match traj.load() {
         Some(load) => measured_deflection(&traj.position[..n], load),
-        None if shape.backlash_spring_frequency > 0.0 => traj.lowpass(&spring_gap_excess(
-            &traj.position[..n],
-            &traj.velocity[..n],
-            shape,
-            traj.dt,
-        )),
         None => traj.lowpass(&gap_deflection(
             &traj.position[..n],
             &traj.velocity[..n],
@@ -448,70 +367,6 @@ mod tests {
         assert!(plain.load().is_none() && traj.load().is_some());
         let shape = Shape::default();
         assert_ne!(fingerprint(&plain, &shape), fingerprint(&traj, &shape));
-    }
-
-    /// The gap behind a spring against a load integrated here by RK4 on a fine grid (the
-    /// motor's motion known in closed form), and, as the spring stiffens, against the rigid
-    /// contact's play operator: the excess over a linear spring tends to the gap's own
-    /// deflection, the linear spring's vanishing.
-    #[test]
-    fn gap_behind_a_spring_matches_an_independent_integration() {
-        let (n, dt) = (3000, 1e-3);
-        let motor = |t: f64| (0.02 * (3.0 * t).sin() + 0.004 * (17.0 * t).sin(), 0.06 * (3.0 * t).cos() + 0.068 * (17.0 * t).cos());
-        let (x1, v1): (Vec<f64>, Vec<f64>) = (0..n).map(|i| motor(i as f64 * dt)).unzip();
-        let (b, tau, f2, z2) = (0.004, 0.3, 25.0, 0.1);
-        let shape = Shape {
-            backlash_width: b,
-            backlash_load_time: tau,
-            backlash_spring_frequency: f2,
-            backlash_spring_damping: z2,
-            ..Shape::default()
-        };
-        let got = spring_gap_excess(&x1, &v1, &shape, dt);
-        let w = std::f64::consts::TAU * f2;
-        let load = |gap: f64| -> Vec<f64> {
-            let acc = |t: f64, x: f64, v: f64| {
-                let (m, mv) = motor(t);
-                let d = m - x;
-                let e = if d > gap / 2.0 { d - gap / 2.0 } else if d < -gap / 2.0 { d + gap / 2.0 } else { 0.0 };
-                let on = if gap == 0.0 || e != 0.0 { 1.0 } else { 0.0 };
-                w * w * e + on * 2.0 * z2 * w * (mv - v) - v / tau
-            };
-            let m = 200;
-            let h = dt / m as f64;
-            let (mut x, mut v) = motor(0.0);
-            let mut out = vec![x];
-            for i in 1..n {
-                for k in 0..m {
-                    let t = (i - 1) as f64 * dt + k as f64 * h;
-                    let (k1x, k1v) = (v, acc(t, x, v));
-                    let (k2x, k2v) = (v + 0.5 * h * k1v, acc(t + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v));
-                    let (k3x, k3v) = (v + 0.5 * h * k2v, acc(t + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v));
-                    let (k4x, k4v) = (v + h * k3v, acc(t + h, x + h * k3x, v + h * k3v));
-                    x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-                    v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-                }
-                out.push(x);
-            }
-            out
-        };
-        let (gap, lin) = (load(b), load(0.0));
-        let want: Vec<f64> = lin.iter().zip(&gap).map(|(l, g)| l - g).collect();
-        // Over the first 0.2 s (three crossings of the gap): a light load rattling in a gap
-        // is sensitive to its contact times, and any two integrators part later on.
-        let peak = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let err = got[..200].iter().zip(&want).fold(0.0f64, |m, (g, w)| m.max((g - w).abs()));
-        assert!(peak > 0.3 * b, "the gap shows: {peak}");
-        assert!(err < 0.01 * peak, "max error {err} of {peak}");
-        // Zero width: no excess at all.
-        let closed = Shape { backlash_width: 0.0, ..shape.clone() };
-        assert!(spring_gap_excess(&x1, &v1, &closed, dt).iter().all(|x| *x == 0.0));
-        // A stiff spring: the rigid contact's deflection (its sign: δ = motor − load).
-        let stiff = Shape { backlash_spring_frequency: 2000.0, backlash_spring_damping: 0.7, ..shape };
-        let excess = spring_gap_excess(&x1, &v1, &stiff, dt);
-        let rigid = gap_deflection(&x1, &v1, b, tau, dt);
-        let err = excess.iter().zip(&rigid).skip(50).fold(0.0f64, |m, (a, r)| m.max((a - r).abs()));
-        assert!(err < 0.1 * b, "stiff spring vs play operator: {err}");
     }
 
     /// A gap's deflection dwells at two edges and is measured as the gap's width; a spring's

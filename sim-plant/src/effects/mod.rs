@@ -217,12 +217,6 @@ pub struct Shape {
     /// Backlash: time constant J_load/b_load (s) of the load's viscous decay while it coasts
     /// through the gap; 0 = no decay (a frictionless load coasts at constant velocity).
     pub backlash_load_time: f64,
-    /// Backlash behind a spring: the load's mode against the held motor (Hz), ω₂² = K/J2, of
-    /// the spring the gap sits in; 0 = a rigid contact at the gap's edges. Not searched: a
-    /// model holding compliance sets it from that effect's mode and split.
-    pub backlash_spring_frequency: f64,
-    /// Backlash behind a spring: damping ratio ζ₂ of the spring's own damping c, c/J2 = 2ζ₂ω₂.
-    pub backlash_spring_damping: f64,
     /// Deadband: half-width of the input dead zone, input units.
     pub deadband_width: f64,
     /// Deadband (torque-constant nonlinearity): input scale the nonlinearity is normalised to
@@ -277,8 +271,6 @@ impl Default for Shape {
             cogging_period: 0.0,
             backlash_width: 0.01,
             backlash_load_time: 0.0,
-            backlash_spring_frequency: 0.0,
-            backlash_spring_damping: 0.0,
             deadband_width: 0.05,
             input_scale: 1.0,
             quantum: 0.0,

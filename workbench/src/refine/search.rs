@@ -485,14 +485,6 @@ fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
     if !(lo > 0.0 && hi > lo) {
         return;
     }
-    // Behind a spring a gap shows as the spring's excess over a linear one, whose amplitude is
-    // the split's J2 (tied, see `residual::refit`), not free: a gap narrower than the grid's
-    // is then told only by its width, down to fractions of a count.
-    let lo = if model.gap_spring().is_some() {
-        lo / 30.0
-    } else {
-        lo
-    };
     let steps = ((hi / lo).ln() / 1.1f64.ln()).ceil() as i32;
     let widths: Vec<f64> = (0..=steps).map(|k| lo * 1.1f64.powi(k)).collect();
     grid_search(
@@ -732,6 +724,14 @@ pub fn best_shape(model: &Model, p: &Prepared, kind: EffectKind) -> Option<Shape
     let d = residual::design(model, p);
     let g0i = gram_inverse(&gram(&d.cols));
     let base = fit::least_squares(&d.cols, &d.y).ok()?;
-    diagnose::scan_shape(kind, p, &d.cols, &g0i, &base.residual, base.rss.max(1e-300))
-        .map(|(s, _)| s)
+    diagnose::scan_shape(
+        kind,
+        model,
+        p,
+        &d.cols,
+        &g0i,
+        &base.residual,
+        base.rss.max(1e-300),
+    )
+    .map(|(s, _)| s)
 }
