@@ -778,14 +778,22 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     let quiet = !model.has(EffectKind::Compliance)
         && baseline.rms <= AT_ENCODER_FLOOR * baseline.encoder_noise_rms;
     if quiet {
+        let mut held = false;
         for c in cands.iter_mut().filter(|c| c.significant) {
             c.significant = false;
+            held = true;
             notes.push(format!(
                 "{}: significant, but the residual is within {:.0} % of the encoder's noise \
-                 floor alone (RMS {:.2}× it): nothing is left to explain",
+                 floor alone (RMS {:.2}× it): nothing is left to explain in this band",
                 c.effect,
                 100.0 * (AT_ENCODER_FLOOR - 1.0),
                 baseline.rms / baseline.encoder_noise_rms
+            ));
+        }
+        if let Some(f) = lower_cutoff(p, own_j, baseline.rms).filter(|_| held) {
+            notes.push(format!(
+                "the encoder's floor falls with the band: at --cutoff {f:.0} it would be half \
+                 this residual, and what was held back here can be tested there"
             ));
         }
     }
@@ -902,6 +910,22 @@ fn intersample_note(model: &Model, p: &Prepared, opts: &Options, rss: f64) -> Op
             p.intersample
         )
     })
+}
+
+/// The highest cut-off, down to an eighth of the record's, at which the encoder's floor
+/// through inertia `j` would be half of a residual of RMS `rms`: the floor scales with the
+/// differentiator's acceleration gain (about f_c^2.5), while a joint's effects sit at the
+/// motion's frequencies, well inside the band. `None` when no such band is that low.
+fn lower_cutoff(p: &Prepared, j: f64, rms: f64) -> Option<f64> {
+    let (fc, dt) = (p.cutoff_hz, p.dt);
+    let g0 = crate::diff::acceleration_noise_gain(fc, dt);
+    let enc = p.encoder_floor(j);
+    if !(g0 > 0.0 && enc > 0.0 && rms > 0.0) {
+        return None;
+    }
+    (1..=20)
+        .map(|k| fc * 0.9f64.powi(k))
+        .find(|&f| enc * crate::diff::acceleration_noise_gain(f, dt) / g0 <= 0.5 * rms)
 }
 
 /// RMS of a residual, in units of the encoder's share of its noise floor, up to which no
@@ -1039,6 +1063,44 @@ mod tests {
             ljung_box_p,
             model: "test".into(),
         }
+    }
+
+    /// The cut-off the held-back note names does put the encoder's floor at half the
+    /// residual: a record prepared afresh at that cut-off, its encoder noise estimated again,
+    /// shows it (a joint on a 2¹² encoder whose residual is at its encoder floor at 100 Hz).
+    #[test]
+    fn the_named_cutoff_halves_the_encoder_floor() {
+        let (n, dt) = (12_000, 1e-3);
+        let step = std::f64::consts::TAU / 4096.0;
+        let q: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                let x = 0.8 * (0.7 * t).sin() + 0.1 * (5.3 * t).sin() + 0.02 * (31.0 * t).sin();
+                (x / step).round() * step
+            })
+            .collect();
+        let rec = |q: &[f64]| crate::data::Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|k| k as f64 * dt).collect(),
+            input: (0..n).map(|k| (k as f64 * 1.3e-3).cos()).collect(),
+            output: q.to_vec(),
+            load_output: None,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: crate::data::Columns::new("u", "q"),
+            resampled: None,
+            recorded: None,
+        };
+        let j = 0.01;
+        let p = Prepared::new(&rec(&q), Some(100.0));
+        let floor = p.encoder_floor(j);
+        assert!(floor > 0.0);
+        let f = lower_cutoff(&p, j, floor).expect("a lower band halves it");
+        assert!(f < 100.0 && f > 40.0, "{f}");
+        let lower = Prepared::new(&rec(&q), Some(f)).encoder_floor(j);
+        assert!(lower <= 0.55 * floor, "{lower} vs {floor} at {f} Hz");
+        // A residual far above the floor needs no lower band than the first step.
+        assert_eq!(lower_cutoff(&p, j, 100.0 * floor), Some(90.0));
     }
 
     /// "No significant missing effect" on a residual well above its floor says that the
