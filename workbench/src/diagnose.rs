@@ -175,7 +175,7 @@ pub const SEARCH_WINDOW: usize = 40_000;
 fn scan(
     kind: EffectKind,
     p: &Prepared,
-    path: Option<InputPath>,
+    path: Option<&InputPath>,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
@@ -200,7 +200,7 @@ fn scan(
 fn search_windowed(
     kind: EffectKind,
     p: &Prepared,
-    path: Option<InputPath>,
+    path: Option<&InputPath>,
     t: &Trajectory,
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
@@ -241,7 +241,7 @@ fn search(
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
-    path: Option<InputPath>,
+    path: Option<&InputPath>,
     input_noise_var: f64,
 ) -> Option<(Shape, f64, usize)> {
     // Where physics fixes the sign of the first amplitude, a shape whose fit has the wrong
@@ -278,7 +278,7 @@ fn search(
 fn input_noise_bias(
     kind: EffectKind,
     shape: &Shape,
-    path: Option<InputPath>,
+    path: Option<&InputPath>,
     input_noise_var: f64,
     n: usize,
     rss: f64,
@@ -291,7 +291,7 @@ fn input_noise_bias(
     let Some(h) = hz.first() else {
         return Vec::new();
     };
-    let he = path.residual;
+    let he = &path.residual;
     let ee: f64 = he.iter().map(|x| x * x).sum();
     if ee.is_nan() || ee <= 0.0 {
         return Vec::new();
@@ -310,29 +310,31 @@ fn input_noise_bias(
 /// model: the recorded input low-passed, or applied τ late when the model holds a delay (its
 /// prediction is the recorded input delayed, so the input's noise reaches the residual τ
 /// late), and a command-form column shares it through its own response at lag τ.
-#[derive(Clone, Copy)]
 struct InputPath<'a> {
     probe: &'a Prepared,
-    residual: &'a [f64],
+    residual: Vec<f64>,
 }
 
-/// The residual's response to the input probe `pr` under `model` (see [`InputPath`]): the
-/// probe's input less the input-delaying effects' columns at their fitted amplitudes.
-fn input_response(model: &Model, pr: &Prepared) -> Vec<f64> {
-    let mut he = pr.input.clone();
-    for e in model
-        .effects
-        .iter()
-        .filter(|e| e.kind.fit_traits().amplitude_by_search)
-    {
-        let amp = e.params.first().map_or(0.0, |q| q.value);
-        for c in residual::model_columns(e.kind, pr, &e.shape) {
-            for (h, x) in he.iter_mut().zip(&c) {
-                *h -= amp * x;
+impl<'a> InputPath<'a> {
+    /// The path of `p`'s input probe under `model` (none without a probe): the probe's
+    /// input less the input-delaying effects' columns at their fitted amplitudes.
+    fn of(model: &Model, p: &'a Prepared) -> Option<Self> {
+        let probe = p.input_probe.as_deref()?;
+        let mut residual = probe.input.clone();
+        for e in model
+            .effects
+            .iter()
+            .filter(|e| e.kind.fit_traits().amplitude_by_search)
+        {
+            let amp = e.params.first().map_or(0.0, |q| q.value);
+            for c in residual::model_columns(e.kind, probe, &e.shape) {
+                for (h, x) in residual.iter_mut().zip(&c) {
+                    *h -= amp * x;
+                }
             }
         }
+        Some(InputPath { probe, residual })
     }
-    he
 }
 
 /// Expected noise terms of one candidate column (see [`motion_form_err`]): its product with
@@ -464,13 +466,8 @@ pub fn scan_shape(
     e: &[f64],
     rss: f64,
 ) -> Option<(Shape, f64)> {
-    let response = p.input_probe.as_deref().map(|pr| input_response(model, pr));
-    let path = p
-        .input_probe
-        .as_deref()
-        .zip(response.as_deref())
-        .map(|(probe, residual)| InputPath { probe, residual });
-    scan(kind, p, path, x0, g0i, e, rss).map(|s| (s.shape, s.err))
+    let path = InputPath::of(model, p);
+    scan(kind, p, path.as_ref(), x0, g0i, e, rss).map(|s| (s.shape, s.err))
 }
 
 /// ERR of compliance in its *motion form* (`H₂·a`: the acceleration high-passed at the
@@ -632,12 +629,8 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             None => true,
         })
         .collect();
-    let probe_response = p.input_probe.as_deref().map(|pr| input_response(model, pr));
-    let path = p
-        .input_probe
-        .as_deref()
-        .zip(probe_response.as_deref())
-        .map(|(probe, residual)| InputPath { probe, residual });
+    let input_path = InputPath::of(model, p);
+    let path = input_path.as_ref();
     let scanned: Vec<(usize, Option<Scan>)> = {
         use rayon::prelude::*;
         kinds

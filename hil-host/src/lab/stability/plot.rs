@@ -123,27 +123,26 @@ where
             .map_err(|e| anyhow!("{e}"))?
             .label(format!("{}: Routh", m.curves[i].name))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
-        let lab: Vec<(f64, f64)> = m.curves[i]
-            .points
-            .iter()
-            .filter_map(|p| Some((p.x, p.lab.at()? * m.y_scale)))
-            .collect();
+        // The points one judge placed an edge at, in the plot's units.
+        let edges = |edge: fn(&super::Point) -> &super::Edge| -> Vec<(f64, f64)> {
+            curve
+                .points
+                .iter()
+                .filter_map(|p| Some((p.x, edge(p).at()? * m.y_scale)))
+                .collect()
+        };
         chart
             .draw_series(
-                lab.into_iter()
+                edges(|p| &p.lab)
+                    .into_iter()
                     .map(move |p| Circle::new(p, 5, colour.stroke_width(2))),
             )
             .map_err(|e| anyhow!("{e}"))?
             .label(format!("{}: lab", m.curves[i].name))
             .legend(move |(x, y)| Circle::new((x + 9, y), 5, colour.stroke_width(2)));
-        let sampled: Vec<(f64, f64)> = m.curves[i]
-            .points
-            .iter()
-            .filter_map(|p| Some((p.x, p.sampled.at()? * m.y_scale)))
-            .collect();
         chart
             .draw_series(
-                sampled
+                edges(|p| &p.sampled)
                     .into_iter()
                     .map(move |p| Cross::new(p, 5, colour.stroke_width(1))),
             )
