@@ -5,8 +5,10 @@
 //! equation-error residual of the current model:
 //!
 //! 1. **Shape search.** Effects with shape parameters (Stribeck velocity, ripple period,
-//!    backlash width, compliance mode, quantiser step, …) are scanned over `shape_grid`, and
-//!    sharp ones again over a finer `refine_grid` around the best grid point (`shape_search`); for each shape the error-reduction
+//!    backlash width, compliance mode, quantiser step, …) are scanned over `shape_grid` (a
+//!    ripple's period also over the peaks of a dense screen of the residual against position,
+//!    whose wavenumbers count in the grid), and sharp ones again over a finer `refine_grid`
+//!    around the best (`shape_search`); for each shape the error-reduction
 //!    ratio ERR = ΔRSS/RSS of adding `Z` to the current regressors `X` is computed in closed
 //!    form from `ZᵀZ`, `ZᵀX`, `Zᵀe` (a partial-regression update, no refit), and the best
 //!    shape is kept.
@@ -262,7 +264,7 @@ fn search(
             _ => dr,
         })
     };
-    shape_search(kind, t, |batch| batch.par_iter().map(score).collect())
+    shape_search(kind, t, e, |batch| batch.par_iter().map(score).collect())
 }
 
 /// What the recorded input's own noise puts into a candidate column built linearly from that

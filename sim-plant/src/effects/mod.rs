@@ -593,6 +593,17 @@ pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Sha
     }
 }
 
+/// Shapes a dense screen of the residual picks out for the exact test, beside
+/// [`shape_grid`]'s, and how many the screen looked at: for effects whose fingerprint is
+/// too sharp in its shape for any fixed grid to land on (a ripple's period over a long
+/// travel); none for the others.
+pub fn screen(kind: EffectKind, traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
+    match kind {
+        EffectKind::Ripple => ripple::screen(traj, residual),
+        _ => (Vec::new(), 0),
+    }
+}
+
 /// Record-specific columns for the unknown state an effect's internal dynamics start a record
 /// in (the compliance mode's free responses, see `compliance::initial_state`); empty for
 /// memoryless effects. They are nuisance regressors fitted on each record, never model
@@ -641,12 +652,14 @@ pub fn resolved(kind: EffectKind, traj: &Trajectory, shape: &Shape) -> bool {
 }
 
 /// Best shape of `kind` by `score` (higher is better; `None` = not testable at that shape):
-/// scans [`shape_grid`], then [`refine_grid`] around the best grid point. `score` rates a
+/// scans [`shape_grid`] and what [`screen`] picks out of `residual`, then [`refine_grid`]
+/// around the best of them. `score` rates a
 /// batch of shapes at once (the caller may spread a batch over threads). Returns the best
 /// shape, its score and the number of shapes scored (the search's multiplicity).
 pub fn shape_search(
     kind: EffectKind,
     traj: &Trajectory,
+    residual: &[f64],
     mut score: impl FnMut(&[Shape]) -> Vec<Option<f64>>,
 ) -> Option<(Shape, f64, usize)> {
     let mut best: Option<(Shape, f64)> = None;
@@ -662,11 +675,15 @@ pub fn shape_search(
             }
         }
     };
-    consider(shape_grid(kind, traj), &mut best);
+    let (screened, looked_at) = screen(kind, traj, residual);
+    let mut first = shape_grid(kind, traj);
+    first.extend(screened);
+    consider(first, &mut best);
     if let Some((b, _)) = best.clone() {
         consider(refine_grid(kind, traj, &b), &mut best);
     }
-    best.map(|(s, v)| (s, v, tried))
+    // The screen's wavenumbers count as shapes tried: its peaks were chosen among them.
+    best.map(|(s, v)| (s, v, tried + looked_at))
 }
 
 /// The default shape for `kind` given a trajectory: the middle of its [`shape_grid`].

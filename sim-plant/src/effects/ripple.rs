@@ -102,6 +102,89 @@ pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
         .collect()
 }
 
+/// Wavenumbers a [`screen`] looks at, at most: a record whose travel spans 1000 periods of
+/// the shortest one would need 4000 at the screen's step; beyond this the step widens.
+const SCREEN_MAX: usize = 2048;
+
+/// Peaks of the screen handed on to the exact test.
+const SCREEN_PEAKS: usize = 4;
+
+/// The periods where `residual` correlates most with the fingerprint, from a dense screen of
+/// wavenumbers, and how many the screen looked at (the search's multiplicity).
+///
+/// A ripple's correlation with the residual lives in a lobe 2π/span wide in wavenumber
+/// (its phase drifts a whole turn over the travel at the lobe's edge): on a record that
+/// travels many periods that lobe is a few per cent of the period, far narrower than the
+/// log grid's step, which then steps over it. The screen walks the wavenumber in quarter
+/// lobes — |Σ e·exp(i·k·q)|², which is the fingerprint's correlation with a residual that is
+/// already orthogonal to the model — by a rotation per sample, so it costs a complex
+/// multiply per sample and wavenumber rather than a sine per sample and a regression.
+pub fn screen(traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
+    let n = traj.len().min(residual.len());
+    let q = &traj.position[..n];
+    let periods = periods(traj);
+    let (Some(&pmin), Some(&pmax)) = (periods.first(), periods.last()) else {
+        return (Vec::new(), 0);
+    };
+    let (lo, hi) = q
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| (l.min(x), h.max(x)));
+    let span = hi - lo;
+    if !(span > 0.0 && pmin > 0.0 && pmax > pmin) {
+        return (Vec::new(), 0);
+    }
+    let (k0, k1) = (TAU / pmax, TAU / pmin);
+    let dk = (TAU / span / 4.0).max((k1 - k0) / SCREEN_MAX as f64);
+    let count = ((k1 - k0) / dk).floor() as usize + 1;
+    // Positions from the travel's middle keep the rotations' phases small.
+    let mid = 0.5 * (lo + hi);
+    let (mut re, mut im): (Vec<f64>, Vec<f64>) = q
+        .iter()
+        .map(|&x| {
+            let (s, c) = (k0 * (x - mid)).sin_cos();
+            (c, s)
+        })
+        .unzip();
+    let (wr, wi): (Vec<f64>, Vec<f64>) = q
+        .iter()
+        .map(|&x| {
+            let (s, c) = (dk * (x - mid)).sin_cos();
+            (c, s)
+        })
+        .unzip();
+    let e = &residual[..n];
+    let mut power = Vec::with_capacity(count);
+    for _ in 0..count {
+        let (mut sr, mut si) = (0.0, 0.0);
+        for i in 0..n {
+            sr += e[i] * re[i];
+            si += e[i] * im[i];
+            let r = re[i] * wr[i] - im[i] * wi[i];
+            im[i] = re[i] * wi[i] + im[i] * wr[i];
+            re[i] = r;
+        }
+        power.push(sr * sr + si * si);
+    }
+    // Local maxima, strongest first.
+    let mut peaks: Vec<usize> = (0..count)
+        .filter(|&j| {
+            let left = j.checked_sub(1).map_or(0.0, |l| power[l]);
+            let right = power.get(j + 1).copied().unwrap_or(0.0);
+            power[j] > 0.0 && power[j] >= left && power[j] >= right
+        })
+        .collect();
+    peaks.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
+    let shapes = peaks
+        .into_iter()
+        .take(SCREEN_PEAKS)
+        .map(|j| Shape {
+            ripple_period: TAU / (k0 + dk * j as f64),
+            ..Shape::default()
+        })
+        .collect();
+    (shapes, count)
+}
+
 /// Shared with cogging and gravity-like features.
 pub(crate) fn periodic_columns(traj: &Trajectory, period: f64) -> Vec<Vec<f64>> {
     let k = TAU / positive_or(period, 1.0);
@@ -128,4 +211,50 @@ pub(crate) fn periods(traj: &Trajectory) -> Vec<f64> {
         return vec![pmax];
     }
     log_space(pmin, pmax, 32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A record travelling back and forth over 15 rad (tens of periods), a ripple in the
+    /// residual at periods spread over a decade and a half, in white noise as strong as the
+    /// ripple: the screen's strongest peak is within one of its steps of the ripple's
+    /// wavenumber, wherever the period falls between the log grid's points (which step
+    /// 15 % here, while the lobe is 1–13 % of the period wide).
+    #[test]
+    fn the_screen_finds_a_period_between_grid_points() {
+        let (dt, n) = (1e-3, 12_000);
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let w = TAU * 0.25;
+        let q: Vec<f64> = t.iter().map(|t| 7.5 * (1.0 - (w * t).cos())).collect();
+        let v: Vec<f64> = t.iter().map(|t| 7.5 * w * (w * t).sin()).collect();
+        let a: Vec<f64> = t.iter().map(|t| 7.5 * w * w * (w * t).cos()).collect();
+        let zero = vec![0.0; n];
+        let traj = Trajectory::unfiltered(dt, &zero, &q, &v, &a);
+        // White noise from a counter hash (SplitMix64), uniform with unit RMS.
+        let noise = |i: u64| {
+            let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            ((z >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
+        };
+        let grid = periods(&traj);
+        assert!(grid.len() > 2 && grid[1] / grid[0] > 1.1, "{grid:?}");
+        for period in log_space(0.1, 3.0, 9) {
+            let e: Vec<f64> = q
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| (TAU * x / period + 0.7).sin() + noise(i as u64))
+                .collect();
+            let (shapes, looked_at) = screen(&traj, &e);
+            let best = shapes.first().expect("a peak").ripple_period;
+            // Within the screen's step (a quarter of the 2π/span lobe) in wavenumber: well
+            // inside the finer grid the search then lays around it.
+            let miss = (TAU / best - TAU / period).abs();
+            assert!(miss <= TAU / 15.0 / 4.0, "{period}: {best}");
+            assert!(looked_at > grid.len(), "{looked_at}");
+        }
+    }
 }

@@ -279,6 +279,25 @@ pub fn recording(rec: &TruthRecord, logging: Logging, load: bool, label: &str) -
     }
 }
 
+/// Write a truth's record as a CSV the CLI reads (`torque_Nm`, `q_rad`, `load_rad`), to look
+/// at one trial with `hil-host diagnose`.
+fn dump(rec: &TruthRecord, path: &std::path::Path) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(w, "t_s,torque_Nm,q_rad,load_rad")?;
+    for (i, t) in rec.time.iter().enumerate() {
+        let at = |x: &[f64]| x.get(i).copied().unwrap_or(f64::NAN);
+        writeln!(
+            w,
+            "{t},{},{},{}",
+            at(&rec.input),
+            at(&rec.position),
+            at(&rec.load_position)
+        )?;
+    }
+    w.flush()
+}
+
 /// The starting model a family is diagnosed against: the default baseline, plus Coulomb for
 /// Stribeck (Stribeck is a refinement of Coulomb, so its truth always has Coulomb too).
 pub fn start_model(families: &[Family]) -> Model {
@@ -425,6 +444,9 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     out.verdict = d.verdict.add.map(|k| k.name().to_string());
     out.floors = Some([d.baseline.rms, d.baseline.noise_floor_rms, t.floor_est]);
     let debug = std::env::var_os("HIDDEN_DEBUG").is_some();
+    if let Some(path) = std::env::var_os("HIDDEN_DUMP") {
+        dump(&t.est, std::path::Path::new(&path)).map_err(|e| format!("HIDDEN_DUMP: {e}"))?;
+    }
     if debug {
         eprintln!(
             "ρ = {:.2}, floor {:.3e}\n{}",
