@@ -521,6 +521,7 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
                         s.step, s.added, s.score.rms, s.verdict
                     );
                 }
+                eprintln!("--auto stop: {}", run.stop);
             }
         }
         _ => {}

@@ -165,7 +165,8 @@ pub fn auto_observed(
                 stop: format!("reached --max-steps {max_steps}"),
             });
         }
-        let Some((c, fitted)) = choose(model, p, &d, name)? else {
+        let ranked = choose(model, p, &d, name)?;
+        if ranked.is_empty() {
             // Every leading candidate fits only with a parameter outside its physical range,
             // or leaves the model worse by BIC once refitted (the last diagnosis says which
             // was next): stop with the model as it is.
@@ -177,36 +178,36 @@ pub fn auto_observed(
                      physical range, or raises BIC once refitted"
                 ),
             });
-        };
-        // The step taken is refitted in full, from the candidate's grid shape: the
-        // candidates were weighed with the model's other shapes as they were.
-        let fitted = {
-            let mut m = model.clone();
-            m.add(c.effect, c.shape.clone());
-            refit_all(&mut m, p)?;
-            if m.physical().is_ok() {
-                m
-            } else {
-                fitted
-            }
-        };
-        // With a validation record, a step must earn its place there too.
-        let val = validation.map(|v| score(&fitted, v));
-        if let (Some(before), Some(after)) = (steps.list.last().and_then(|s| s.validation), val) {
-            if after.rms.partial_cmp(&before.rms) != Some(std::cmp::Ordering::Less) {
-                return Ok(AutoRun {
-                    steps: steps.list,
-                    last: d,
-                    stop: format!(
-                        "adding {} would not improve the validation record (RMS {} → {}): \
-                         the model as it is validates best",
-                        c.effect,
-                        crate::units::eng(before.rms),
-                        crate::units::eng(after.rms)
-                    ),
-                });
-            }
         }
+        // In BIC order, the first candidate that also lowers the validation error (with a
+        // validation record a step must earn its place there): a simpler alternative that
+        // the estimation record preferred but that does not validate leaves the verdict
+        // and the others their turn, and then the richer candidates behind them.
+        let val_before = steps.list.last().and_then(|s| s.validation);
+        let mut refused: Option<(EffectKind, Score)> = None;
+        let mut taken = first_validating(model, p, ranked, validation, val_before, &mut refused)?;
+        if taken.is_none() && validation.is_some() {
+            let more = richer(model, p, &d, name)?;
+            taken = first_validating(model, p, more, validation, val_before, &mut refused)?;
+        }
+        let Some((c, fitted, val)) = taken else {
+            // Every candidate was refused on the validation record (the loop takes the first
+            // one otherwise): name the best-ranked.
+            let stop = match (refused, val_before) {
+                (Some((effect, after)), Some(before)) => format!(
+                    "adding {effect} (or any close candidate) would not improve the validation \
+                     record (RMS {} → {}): the model as it is validates best",
+                    crate::units::eng(before.rms),
+                    crate::units::eng(after.rms)
+                ),
+                _ => format!("{name}: no candidate could be added"),
+            };
+            return Ok(AutoRun {
+                steps: steps.list,
+                last: d,
+                stop,
+            });
+        };
         *model = fitted;
         steps.push(AutoStep {
             step: steps.list.len(),
@@ -219,6 +220,45 @@ pub fn auto_observed(
             verdict: d.verdict.text.clone(),
         });
     }
+}
+
+/// A step of `--auto` as it would be taken, with its validation score.
+type Step = (diagnose::Candidate, Model, Option<Score>);
+
+/// The first of `ranked` that, refitted in full from its grid shape, lowers the validation
+/// error below `before` (any, without a validation record); the first refused is kept in
+/// `refused` for the stop message.
+fn first_validating(
+    model: &Model,
+    p: &Prepared,
+    ranked: Vec<(diagnose::Candidate, Model)>,
+    validation: Option<&Prepared>,
+    before: Option<Score>,
+    refused: &mut Option<(EffectKind, Score)>,
+) -> Result<Option<Step>, fit::FitError> {
+    for (c, fitted) in ranked {
+        // The step taken is refitted in full, from the candidate's grid shape: the
+        // candidates were weighed with the model's other shapes as they were.
+        let fitted = {
+            let mut m = model.clone();
+            m.add(c.effect, c.shape.clone());
+            refit_all(&mut m, p)?;
+            if m.physical().is_ok() {
+                m
+            } else {
+                fitted
+            }
+        };
+        let val = validation.map(|v| score(&fitted, v));
+        if let (Some(before), Some(after)) = (before, val) {
+            if after.rms.partial_cmp(&before.rms) != Some(std::cmp::Ordering::Less) {
+                refused.get_or_insert((c.effect, after));
+                continue;
+            }
+        }
+        return Ok(Some((c, fitted, val)));
+    }
+    Ok(None)
 }
 
 /// Whether `m` does at least as well as `before` on the validation record (true without one).
@@ -259,24 +299,25 @@ fn spent_params(kind: EffectKind, df: usize) -> usize {
 /// its grid shape still competes in [`choose`].
 const CLOSE_ERR: f64 = 0.5;
 
-/// Which significant candidate `--auto` adds: the diagnosis ranks by the error reduction at a
-/// grid shape, without shape refinement and without charging for parameters. Between the
-/// leading significant candidates (at most three), each is added and fully refitted, and the
-/// one with the lowest BIC, n·ln(RSS/n) + k·ln n, wins — the one-column effect when two
-/// explain the residual comparably (gravity vs ripple, Coulomb vs asymmetry).
+/// Which significant candidates `--auto` may add, best first: the diagnosis ranks by the
+/// error reduction at a grid shape, without shape refinement and without charging for
+/// parameters. Between the leading significant candidates (at most three), each is added and
+/// fully refitted, and they are ordered by the BIC, n·ln(RSS/n) + k·ln n, they buy per
+/// parameter — the one-column effect first when two explain the residual comparably
+/// (gravity vs ripple, Coulomb vs asymmetry). `--auto` takes the first that also validates.
 ///
 /// A candidate is taken only if its refitted model also has a lower BIC than the current one
 /// ([`bic`]): significance is judged at the candidate's grid shape against a plain
 /// least-squares projection, but the step adds a fully refitted effect, and refitting (new
 /// shapes, errors-in-variables compensation of the motion columns) can leave the model worse
 /// than before (a backlash significant at its grid shape can raise the RMS once refitted).
-/// `None` when none of them fits within its physical range with a lower BIC than the model's.
+/// Empty when none of them fits within its physical range with a lower BIC than the model's.
 pub(super) fn choose(
     model: &Model,
     p: &Prepared,
     d: &Diagnosis,
     verdict: EffectKind,
-) -> Result<Option<(diagnose::Candidate, Model)>, fit::FitError> {
+) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
     let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
     let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
         return Err(fit::FitError::NonFinite);
@@ -304,6 +345,46 @@ pub(super) fn choose(
             })
             .take(2),
     );
+    rank(model, p, &pool)
+}
+
+/// The significant candidates richer than the verdict (at most two, in the diagnosis's
+/// order), ranked as [`choose`] ranks: what `--auto` tries when the validation record has
+/// refused every candidate [`choose`] offered. An offset that stands in for gravity over a
+/// short travel is the verdict there, and refused where the joint stands elsewhere; the
+/// gravity behind it then gets its turn, under the same validation test.
+pub(super) fn richer(
+    model: &Model,
+    p: &Prepared,
+    d: &Diagnosis,
+    verdict: EffectKind,
+) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
+    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
+    let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
+        return Err(fit::FitError::NonFinite);
+    };
+    let traj = p.trajectory();
+    let pool: Vec<&diagnose::Candidate> = d
+        .candidates
+        .iter()
+        .filter(|c| {
+            c.significant
+                && spent(c) > spent(top)
+                && sim_plant::effects::resolved(c.effect, &traj, &c.shape)
+        })
+        .take(2)
+        .collect();
+    rank(model, p, &pool)
+}
+
+/// `pool`'s candidates added one at a time and refitted, those within their physical range
+/// that lower the BIC, best BIC gain per parameter first.
+fn rank(
+    model: &Model,
+    p: &Prepared,
+    pool: &[&diagnose::Candidate],
+) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
+    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
     let current = bic(model, p);
     // Each candidate's full refit is independent of the others' (and deterministic), so they
     // run on the worker pool; the results are then taken in pool order, exactly as one
@@ -324,8 +405,8 @@ pub(super) fn choose(
     // a parameter budget. A one-parameter offset that explains nearly what a two-parameter
     // asymmetry does goes first; the richer effect must then earn its second parameter at
     // the next step.
-    let mut best: Option<(f64, diagnose::Candidate, Model)> = None;
-    for (c, refit) in pool.into_iter().zip(refits) {
+    let mut ranked: Vec<(f64, diagnose::Candidate, Model)> = Vec::new();
+    for (&c, refit) in pool.iter().zip(refits) {
         let Some(refit) = refit else {
             continue;
         };
@@ -339,11 +420,11 @@ pub(super) fn choose(
         if gain.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
-        if best.as_ref().is_none_or(|x| gain > x.0) {
-            best = Some((gain, c.clone(), m));
-        }
+        ranked.push((gain, c.clone(), m));
     }
-    Ok(best.map(|(_, c, m)| (c, m)))
+    // Best gain first; a tie keeps pool order (the verdict first).
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+    Ok(ranked.into_iter().map(|(_, c, m)| (c, m)).collect())
 }
 
 /// Whether `m` is a model `--auto` may hold: stribeck is the excess of stiction *above* a
