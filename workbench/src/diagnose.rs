@@ -170,7 +170,9 @@ struct Scan {
 /// Records longer than this are shape-searched on a central window of this many samples (the
 /// chosen shape is then scored on the whole record): filtered fingerprints (compliance,
 /// quantisation) cost a filter pass per shape, and the shape is a property of the joint, not of
-/// the record's length.
+/// the record's length. A spatial period is searched on the whole record: its columns cost a
+/// sine per sample, and the period a record resolves grows with its travel, which a central
+/// window (the quiet middle of a chirp) can cut to a third.
 pub const SEARCH_WINDOW: usize = 40_000;
 
 /// Best shape of one effect by ERR against residual `e` of regressors with Gram inverse `g0i`.
@@ -184,7 +186,8 @@ fn scan(
     rss: f64,
 ) -> Option<Scan> {
     let t = p.trajectory();
-    let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW {
+    let whole = kind.fit_traits().search == sim_plant::effects::ShapeSearch::Period;
+    let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW || whole {
         search(kind, &t, x0, g0i, e, path, p.input_noise_var)?
     } else {
         search_windowed(kind, p, path, &t, x0, g0i, e)?
@@ -537,12 +540,19 @@ fn motion_form_err(
     best
 }
 
+/// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
+/// Stribeck velocity, dead-zone width, backlash width, quantum).
+pub fn spent_params(kind: EffectKind, df: usize) -> usize {
+    df + usize::from(kind.fit_traits().searched_shape)
+}
+
 /// Occam between indistinguishable candidates (step 4 of the module docs).
 ///
-/// Effects of the library differ in their number of fingerprint columns (asymmetry has a
-/// Coulomb-extra and a viscous-extra column, deadband a width and a nonlinearity column), and
-/// more columns always explain at least as much. When the top candidate by ERR and a
-/// significant candidate with *fewer* columns leave the same trace on this record (their
+/// Effects of the library differ in the parameters they spend (asymmetry has a Coulomb-extra
+/// and a viscous-extra column, deadband a width and a nonlinearity column, a ripple searches
+/// its period where gravity's is fixed: [`spent_params`]), and more of them always explain at
+/// least as much. When the top candidate by ERR and a significant candidate with *fewer*
+/// parameters leave the same trace on this record (their
 /// contributions correlate ≥ `ambiguity_corr`), the richer one is kept on top only if it
 /// explains at least `min_err` more of the residual than the simpler one; otherwise the
 /// simpler one is moved to rank 1. Both stay in the list, and the verdict names them as
@@ -562,7 +572,11 @@ fn prefer_parsimonious(
     let ct = contribution(&zt, x0, g0i, e);
     let mut best: Option<usize> = None;
     for (i, c) in cands.iter().enumerate().skip(1) {
-        if !c.significant || c.df >= top.df || best.is_some_and(|b| cands[b].df <= c.df) {
+        let spent = |c: &Candidate| spent_params(c.effect, c.df);
+        if !c.significant
+            || spent(c) >= spent(&top)
+            || best.is_some_and(|b| spent(&cands[b]) <= spent(c))
+        {
             continue;
         }
         // Both are already above the noise floor (significant); between two explanations of

@@ -103,7 +103,7 @@ pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
 }
 
 /// Wavenumbers a [`screen`] looks at, at most: a record whose travel spans 1000 periods of
-/// the shortest one would need 4000 at the screen's step; beyond this the step widens.
+/// the shortest one would need about 4000 at the screen's steps; beyond this they widen.
 const SCREEN_MAX: usize = 2048;
 
 /// Peaks of the screen handed on to the exact test.
@@ -116,7 +116,7 @@ const SCREEN_PEAKS: usize = 4;
 /// (its phase drifts a whole turn over the travel at the lobe's edge): on a record that
 /// travels many periods that lobe is a few per cent of the period, far narrower than the
 /// log grid's step, which then steps over it. The screen walks the wavenumber in quarter
-/// lobes — |Σ e·exp(i·k·q)|², which is the fingerprint's correlation with a residual that is
+/// lobes (or 1 % of it where that is finer) — |Σ e·exp(i·k·q)|², which is the fingerprint's correlation with a residual that is
 /// already orthogonal to the model — by a rotation per sample, so it costs a complex
 /// multiply per sample and wavenumber rather than a sine per sample and a regression.
 pub fn screen(traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
@@ -134,51 +134,64 @@ pub fn screen(traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
         return (Vec::new(), 0);
     }
     let (k0, k1) = (TAU / pmax, TAU / pmin);
-    let dk = (TAU / span / 4.0).max((k1 - k0) / SCREEN_MAX as f64);
-    let count = ((k1 - k0) / dk).floor() as usize + 1;
+    // Octaves of wavenumber, each walked in steps of a quarter lobe or 1 % of its wavenumber,
+    // whichever is finer (a period that the travel crosses a few times has a lobe tens of per
+    // cent wide); all steps widen alike when that would exceed SCREEN_MAX.
+    let mut bands: Vec<(f64, f64)> = Vec::new();
+    let mut k = k0;
+    while k < k1 {
+        let top = (2.0 * k).min(k1);
+        bands.push((k, top));
+        k = top;
+    }
+    let step = |lo: f64| (TAU / span / 4.0).min(0.01 * lo);
+    let need: f64 = bands.iter().map(|&(lo, hi)| (hi - lo) / step(lo)).sum();
+    let widen = (need / SCREEN_MAX as f64).max(1.0);
     // Positions from the travel's middle keep the rotations' phases small.
     let mid = 0.5 * (lo + hi);
-    let (mut re, mut im): (Vec<f64>, Vec<f64>) = q
-        .iter()
-        .map(|&x| {
-            let (s, c) = (k0 * (x - mid)).sin_cos();
-            (c, s)
-        })
-        .unzip();
-    let (wr, wi): (Vec<f64>, Vec<f64>) = q
-        .iter()
-        .map(|&x| {
-            let (s, c) = (dk * (x - mid)).sin_cos();
-            (c, s)
-        })
-        .unzip();
     let e = &residual[..n];
-    let mut power = Vec::with_capacity(count);
-    for _ in 0..count {
-        let (mut sr, mut si) = (0.0, 0.0);
-        for i in 0..n {
-            sr += e[i] * re[i];
-            si += e[i] * im[i];
-            let r = re[i] * wr[i] - im[i] * wi[i];
-            im[i] = re[i] * wi[i] + im[i] * wr[i];
-            re[i] = r;
+    let mut power: Vec<(f64, f64)> = Vec::new();
+    for &(lo, hi) in &bands {
+        let dk = step(lo) * widen;
+        let count = ((hi - lo) / dk).ceil().max(1.0) as usize;
+        let rotor = |k: f64| -> (Vec<f64>, Vec<f64>) {
+            q.iter()
+                .map(|&x| {
+                    let (s, c) = (k * (x - mid)).sin_cos();
+                    (c, s)
+                })
+                .unzip()
+        };
+        let (mut re, mut im) = rotor(lo);
+        let (wr, wi) = rotor(dk);
+        for j in 0..count {
+            let (mut sr, mut si) = (0.0, 0.0);
+            for i in 0..n {
+                sr += e[i] * re[i];
+                si += e[i] * im[i];
+                let r = re[i] * wr[i] - im[i] * wi[i];
+                im[i] = re[i] * wi[i] + im[i] * wr[i];
+                re[i] = r;
+            }
+            power.push((lo + dk * j as f64, sr * sr + si * si));
         }
-        power.push(sr * sr + si * si);
     }
+    let count = power.len();
     // Local maxima, strongest first.
+    let at = |j: usize| power.get(j).map_or(0.0, |&(_, p)| p);
     let mut peaks: Vec<usize> = (0..count)
         .filter(|&j| {
-            let left = j.checked_sub(1).map_or(0.0, |l| power[l]);
-            let right = power.get(j + 1).copied().unwrap_or(0.0);
-            power[j] > 0.0 && power[j] >= left && power[j] >= right
+            let left = j.checked_sub(1).map_or(0.0, at);
+            at(j) > 0.0 && at(j) >= left && at(j) >= at(j + 1)
         })
         .collect();
-    peaks.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
+    peaks.sort_by(|&a, &b| at(b).total_cmp(&at(a)));
     let shapes = peaks
         .into_iter()
         .take(SCREEN_PEAKS)
-        .map(|j| Shape {
-            ripple_period: TAU / (k0 + dk * j as f64),
+        .filter_map(|j| power.get(j))
+        .map(|&(k, _)| Shape {
+            ripple_period: TAU / k,
             ..Shape::default()
         })
         .collect();

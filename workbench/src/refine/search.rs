@@ -3,7 +3,7 @@
 //! step, the backlash width and the load's time constant, Stribeck's stick window), each a
 //! line, grid or golden-section search on [`ls_rss`].
 
-use sim_plant::effects::{backlash, EffectKind, Shape, ShapeSearch};
+use sim_plant::effects::{backlash, EffectKind, Shape, ShapeSearch, SmoothShape};
 
 use super::super::diagnose;
 use super::super::fit::{self, gram, gram_inverse};
@@ -151,47 +151,17 @@ fn golden(
     line_search(model, p, e, &[x, keep], set)
 }
 
-/// The `count` highest local maxima of the position periodogram |Σ r·e^{i2πq/P}|² of the
-/// residual `r` of `model` without effect `e`, over periods P ∈ [lo, hi] spaced by 1 %.
-fn periodogram_peaks(
-    model: &Model,
-    p: &Prepared,
-    e: usize,
-    lo: f64,
-    hi: f64,
-    count: usize,
-) -> Vec<f64> {
+/// The periods the effect's screen (`sim_plant::effects::screen`: the position periodogram
+/// of a residual, in steps the travel resolves) picks out of the residual of `model` without
+/// effect `e`.
+fn screened_periods(model: &Model, p: &Prepared, e: usize, acc: SmoothShape) -> Vec<f64> {
     let mut m = model.clone();
-    m.effects.remove(e);
+    let kind = m.effects.remove(e).kind;
     let Ok(fit) = residual::refit(&mut m, p) else {
         return Vec::new();
     };
-    let r = &fit.residual;
-    if !(lo > 0.0 && hi > lo) {
-        return Vec::new();
-    }
-    let steps = ((hi / lo).ln() / 1.01f64.ln()).ceil() as usize;
-    let periods: Vec<f64> = (0..=steps).map(|k| lo * 1.01f64.powi(k as i32)).collect();
-    let power = |period: f64| -> f64 {
-        let k = std::f64::consts::TAU / period;
-        let (mut a, mut b) = (0.0, 0.0);
-        for (x, q) in r.iter().zip(&p.position) {
-            let (sn, cs) = (k * q).sin_cos();
-            a += x * sn;
-            b += x * cs;
-        }
-        a * a + b * b
-    };
-    let pw: Vec<f64> = {
-        use rayon::prelude::*;
-        periods.par_iter().map(|&x| power(x)).collect()
-    };
-    let mut peaks: Vec<(f64, f64)> = (1..pw.len().saturating_sub(1))
-        .filter(|&i| pw[i] >= pw[i - 1] && pw[i] >= pw[i + 1])
-        .map(|i| (pw[i], periods[i]))
-        .collect();
-    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
-    peaks.into_iter().take(count).map(|(_, x)| x).collect()
+    let (shapes, _) = sim_plant::effects::screen(kind, &p.trajectory(), &fit.residual);
+    shapes.iter().map(|s| (acc.get)(s)).collect()
 }
 
 fn set_delay(m: &mut Model, e: usize, tau: f64) {
@@ -211,7 +181,7 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 /// * **Coulomb**: the sign's time lead (`Shape::sign_lead`) and smoothing ε, by coordinate
 ///   search: dynamic friction reverses over a pre-sliding displacement, not exactly at v = 0.
 /// * **Ripple**: the period on a fine grid (±1 step of the coarse grid, 1/10 step) and around
-///   the three highest peaks of a 1 %-spaced position periodogram of the residual, because
+///   the peaks of the effect's screen (a position periodogram of the residual), because
 ///   the RSS oscillates in the period and LM only finds the nearest minimum.
 ///
 /// * **Compliance**: the mode (f, ζ) by a joint grid and golden sections, in the command form
@@ -319,11 +289,9 @@ fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
                     .collect();
                 // A ripple of many periods over the travel explains almost nothing one coarse
                 // step (×1.25) off its period, so the coarse best can be anywhere: add the
-                // peaks of a fine position periodogram of the residual without the ripple.
-                if let (Some(lo), Some(hi)) = (grid.first(), grid.last()) {
-                    for peak in periodogram_peaks(model, p, e, (acc.get)(lo), (acc.get)(hi), 3) {
-                        xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
-                    }
+                // peaks of the effect's screen of the residual without the ripple.
+                for peak in screened_periods(model, p, e, acc) {
+                    xs.extend((-4..=4).map(|k| peak * 1.0025f64.powi(k)));
                 }
                 let set_period =
                     |m: &mut Model, e: usize, x: f64| (acc.set)(&mut m.effects[e].shape, x);
