@@ -548,11 +548,10 @@ pub fn spent_params(kind: EffectKind, df: usize) -> usize {
 
 /// Occam between indistinguishable candidates (step 4 of the module docs).
 ///
-/// Effects of the library differ in the parameters they spend (asymmetry has a Coulomb-extra
-/// and a viscous-extra column, deadband a width and a nonlinearity column, a ripple searches
-/// its period where gravity's is fixed: [`spent_params`]), and more of them always explain at
-/// least as much. When the top candidate by ERR and a significant candidate with *fewer*
-/// parameters leave the same trace on this record (their
+/// Effects of the library differ in their number of fingerprint columns (asymmetry has a
+/// Coulomb-extra and a viscous-extra column, deadband a width and a nonlinearity column), and
+/// more columns always explain at least as much. When the top candidate by ERR and a
+/// significant candidate with *fewer* columns leave the same trace on this record (their
 /// contributions correlate ≥ `ambiguity_corr`), the richer one is kept on top only if it
 /// explains at least `min_err` more of the residual than the simpler one; otherwise the
 /// simpler one is moved to rank 1. Both stay in the list, and the verdict names them as
@@ -572,11 +571,7 @@ fn prefer_parsimonious(
     let ct = contribution(&zt, x0, g0i, e);
     let mut best: Option<usize> = None;
     for (i, c) in cands.iter().enumerate().skip(1) {
-        let spent = |c: &Candidate| spent_params(c.effect, c.df);
-        if !c.significant
-            || spent(c) >= spent(&top)
-            || best.is_some_and(|b| spent(&cands[b]) <= spent(c))
-        {
+        if !c.significant || c.df >= top.df || best.is_some_and(|b| cands[b].df <= c.df) {
             continue;
         }
         // Both are already above the noise floor (significant); between two explanations of
