@@ -1,5 +1,5 @@
 //! The smoothing differentiator: zero-phase 4th-order Butterworth low-pass (forward–backward,
-//! odd-reflection padding) followed by central differences.
+//! odd-reflection padding) followed by fourth-order central differences (five points).
 //!
 //! Why this one: it is what the EMPS authors used for their reference IDIM fit (4th order,
 //! 100 Hz, forward–backward, central differences), so the parameters we fit on EMPS are
@@ -9,6 +9,12 @@
 //! above the motion bandwidth and below where encoder quantisation noise dominates). The
 //! default cut-off is a tenth of the sample rate, at most 100 Hz. Because a forward–backward filter rings at
 //! the ends, [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
+//!
+//! Five points rather than three: the three-point second difference reads an acceleration at
+//! a tenth of the sample rate (the default band's edge) 3.3 % low, (ω·dt)²/12, and a joint's
+//! inertia torque then leaves a residual ∝ the acceleration's second derivative, which a
+//! transmission mode fits (rigid joints chirped to 25 Hz at 250 Hz were named compliance). The
+//! five-point error is (ω·dt)⁴/90, 0.2 % there.
 
 /// Samples dropped at each end, in periods of the cut-off frequency.
 pub const EDGE_CUTOFF_PERIODS: f64 = 5.0;
@@ -65,9 +71,9 @@ pub fn step_velocity_peak(fc: f64, dt: f64) -> f64 {
 pub struct Derivatives {
     /// Filtered position.
     pub position: Vec<f64>,
-    /// Velocity (central difference of the filtered position).
+    /// Velocity (five-point central difference of the filtered position).
     pub velocity: Vec<f64>,
-    /// Acceleration (second central difference of the filtered position).
+    /// Acceleration (five-point second central difference of the filtered position).
     pub acceleration: Vec<f64>,
 }
 
@@ -79,8 +85,19 @@ pub fn differentiate(x: &[f64], dt: f64, fc: f64) -> Derivatives {
     let mut v = vec![0.0; n];
     let mut a = vec![0.0; n];
     for i in 1..n.saturating_sub(1) {
-        v[i] = (p[i + 1] - p[i - 1]) / (2.0 * dt);
-        a[i] = (p[i + 1] - 2.0 * p[i] + p[i - 1]) / (dt * dt);
+        // Three points next to the ends (the edges are dropped anyway), five inside.
+        let (vi, ai) = match (p.get(i.wrapping_sub(2)), p.get(i + 2)) {
+            (Some(&m2), Some(&p2)) if i >= 2 => (
+                (m2 - 8.0 * p[i - 1] + 8.0 * p[i + 1] - p2) / (12.0 * dt),
+                (-m2 + 16.0 * p[i - 1] - 30.0 * p[i] + 16.0 * p[i + 1] - p2) / (12.0 * dt * dt),
+            ),
+            _ => (
+                (p[i + 1] - p[i - 1]) / (2.0 * dt),
+                (p[i + 1] - 2.0 * p[i] + p[i - 1]) / (dt * dt),
+            ),
+        };
+        v[i] = vi;
+        a[i] = ai;
     }
     if n >= 2 {
         v[0] = v[1];

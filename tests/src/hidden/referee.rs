@@ -9,7 +9,7 @@
 //! 1/(1 + (tan(πf)/tan(πf_c))⁸), f in cycles per sample.
 //!
 //! * **Floor**: what a perfect model leaves — the input's noise and the encoder's error (the
-//!   logged minus the true position) through the inertia's second difference, low-passed:
+//!   logged minus the true position) through the inertia's five-point second difference, low-passed:
 //!   `RMS(L·(n_u + J·D²·n_q))` over the record's interior.
 //! * **Strength ρ**: the RMS of what the *start model* (rigid inertia + viscous friction, and
 //!   Coulomb friction when the hidden effect is Stribeck) cannot explain of the noise-free
@@ -109,10 +109,11 @@ fn floor_with(rec: &TruthRecord, cutoff_hz: f64, path: NoisePath) -> f64 {
     let nq = error(&rec.position, &rec.position_true);
     let (j, j2) = (rec.inertia, rec.inertia_load);
     let j1 = j - j2;
-    // D², the second difference: −4 sin²(πf)/dt²; s at the same frequency for G.
+    // D², the documented five-point second difference (−1, 16, −30, 16, −1)/12:
+    // (32·cos θ − 2·cos 2θ − 30)/(12·dt²) at θ = 2πf; s at the same frequency for G.
     let d2 = |f: f64| {
-        let s = (std::f64::consts::PI * f).sin();
-        -4.0 * s * s / (dt * dt)
+        let th = std::f64::consts::TAU * f;
+        (32.0 * th.cos() - 2.0 * (2.0 * th).cos() - 30.0) / (12.0 * dt * dt)
     };
     let lu = filter(&rec.input_noise, |f| Complex64::new(lowpass(f, fc), 0.0));
     let motor_path = |f: f64| -> Complex64 {
