@@ -540,12 +540,6 @@ fn motion_form_err(
     best
 }
 
-/// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
-/// Stribeck velocity, dead-zone width, backlash width, quantum).
-pub fn spent_params(kind: EffectKind, df: usize) -> usize {
-    df + usize::from(kind.fit_traits().searched_shape)
-}
-
 /// Occam between indistinguishable candidates (step 4 of the module docs).
 ///
 /// Effects of the library differ in their number of fingerprint columns (asymmetry has a

@@ -6,7 +6,7 @@
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
 
-use super::super::diagnose::{self, spent_params, Diagnosis, Options};
+use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
 use super::super::model::Model;
 use super::super::residual::{self, Prepared};
@@ -288,6 +288,12 @@ impl Steps<'_> {
 /// few units of RSS with structure that is not a physical effect (asymmetry's second column
 /// where offset + Coulomb is the truth).
 const PENALTY: f64 = 2.0;
+
+/// Parameters a fitted effect spends: its amplitudes plus a searched shape (ripple period,
+/// Stribeck velocity, dead-zone width, backlash width, quantum).
+fn spent_params(kind: EffectKind, df: usize) -> usize {
+    df + usize::from(kind.fit_traits().searched_shape)
+}
 
 /// Fraction of the verdict's error reduction at which a candidate that is not significant at
 /// its grid shape still competes in [`choose`].
