@@ -71,7 +71,8 @@ struct Bench {
 
 #[derive(Subcommand)]
 enum One {
-    /// Run and print one trial (`HIDDEN_DEBUG=1` for detail).
+    /// Run and print one trial (`HIDDEN_DEBUG=1` for detail; `HIDDEN_DUMP=FILE` writes its
+    /// estimation record as a CSV for `hil-host diagnose`).
     One {
         /// Truth's name.
         truth: String,
