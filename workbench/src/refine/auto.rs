@@ -295,6 +295,22 @@ fn spent_params(kind: EffectKind, df: usize) -> usize {
     df + usize::from(kind.fit_traits().searched_shape)
 }
 
+/// Parameters a candidate would spend ([`spent_params`]).
+fn spent(c: &diagnose::Candidate) -> usize {
+    spent_params(c.effect, c.df)
+}
+
+/// The diagnosis's candidate for its verdict `verdict`.
+fn verdict_candidate(
+    d: &Diagnosis,
+    verdict: EffectKind,
+) -> Result<&diagnose::Candidate, fit::FitError> {
+    d.candidates
+        .iter()
+        .find(|c| c.effect == verdict)
+        .ok_or(fit::FitError::NonFinite)
+}
+
 /// Fraction of the verdict's error reduction at which a candidate that is not significant at
 /// its grid shape still competes in [`choose`].
 const CLOSE_ERR: f64 = 0.5;
@@ -318,10 +334,7 @@ pub(super) fn choose(
     d: &Diagnosis,
     verdict: EffectKind,
 ) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
-    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
-    let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
-        return Err(fit::FitError::NonFinite);
-    };
+    let top = verdict_candidate(d, verdict)?;
     // Only simpler (or equally simple) alternatives may displace the verdict: BIC's penalty
     // is too light to stop a flexible, input-based fingerprint from fitting what two true
     // effects leave together.
@@ -359,10 +372,7 @@ pub(super) fn richer(
     d: &Diagnosis,
     verdict: EffectKind,
 ) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
-    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
-    let Some(top) = d.candidates.iter().find(|c| c.effect == verdict) else {
-        return Err(fit::FitError::NonFinite);
-    };
+    let top = verdict_candidate(d, verdict)?;
     let traj = p.trajectory();
     let pool: Vec<&diagnose::Candidate> = d
         .candidates
@@ -384,7 +394,6 @@ fn rank(
     p: &Prepared,
     pool: &[&diagnose::Candidate],
 ) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
-    let spent = |c: &diagnose::Candidate| spent_params(c.effect, c.df);
     let current = bic(model, p);
     // Each candidate's full refit is independent of the others' (and deterministic), so they
     // run on the worker pool; the results are then taken in pool order, exactly as one
