@@ -1,7 +1,8 @@
 //! `diagnose --auto`: rank → add → refit until nothing significant is left, choosing among
-//! close candidates by BIC per parameter, then a delay probe and a swap pass over what it
-//! added. With a validation record every step must also lower the validation error, or
-//! `--auto` stops there.
+//! close candidates by BIC per parameter (with a validation record, by the validation error
+//! each removes per parameter), then a delay probe and a swap pass over what it added. With a
+//! validation record every step must also lower the validation error, or `--auto` stops
+//! there.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
@@ -179,20 +180,19 @@ pub fn auto_observed(
                 ),
             });
         }
-        // In BIC order, the first candidate that also lowers the validation error (with a
-        // validation record a step must earn its place there): a simpler alternative that
-        // the estimation record preferred but that does not validate leaves the verdict
-        // and the others their turn, and then the richer candidates behind them.
+        // With a validation record a step must earn its place there: of the candidates that
+        // lower the validation error, the one that lowers it most per parameter; when none
+        // does, the richer candidates behind them get the same test.
         let val_before = steps.list.last().and_then(|s| s.validation);
         let mut refused: Option<(EffectKind, Score)> = None;
-        let mut taken = first_validating(model, p, ranked, validation, val_before, &mut refused)?;
+        let mut taken = best_validating(model, p, ranked, validation, val_before, &mut refused)?;
         if taken.is_none() && validation.is_some() {
             let more = richer(model, p, &d, name)?;
-            taken = first_validating(model, p, more, validation, val_before, &mut refused)?;
+            taken = best_validating(model, p, more, validation, val_before, &mut refused)?;
         }
         let Some((c, fitted, val)) = taken else {
-            // Every candidate was refused on the validation record (the loop takes the first
-            // one otherwise): name the best-ranked.
+            // Every candidate was refused on the validation record (without one the first
+            // is taken): name the best-ranked.
             let stop = match (refused, val_before) {
                 (Some((effect, after)), Some(before)) => format!(
                     "adding {effect} (or any close candidate) would not improve the validation \
@@ -225,10 +225,17 @@ pub fn auto_observed(
 /// A step of `--auto` as it would be taken, with its validation score.
 type Step = (diagnose::Candidate, Model, Option<Score>);
 
-/// The first of `ranked` that, refitted in full from its grid shape, lowers the validation
-/// error below `before` (any, without a validation record); the first refused is kept in
-/// `refused` for the stop message.
-fn first_validating(
+/// Of `ranked` (in BIC order), the step that buys the most validation per parameter it
+/// spends: each refitted in full from its grid shape and scored on the validation record,
+/// the largest ln(RMS before / RMS after) ÷ [`spent`] taken (the earlier on a tie). A
+/// candidate that does not lower the validation error is refused (the first such is kept in
+/// `refused` for the stop message). Without a validation record, the first of `ranked`.
+///
+/// Why validation decides between the ranked, not only whether the first may go: two
+/// effects that the estimation record cannot tell apart (gravity and Coulomb friction over a
+/// short travel) both lower the validation error, by very different amounts where the joint
+/// moves differently; BIC order alone takes the one-parameter effect.
+pub(super) fn best_validating(
     model: &Model,
     p: &Prepared,
     ranked: Vec<(diagnose::Candidate, Model)>,
@@ -236,35 +243,77 @@ fn first_validating(
     before: Option<Score>,
     refused: &mut Option<(EffectKind, Score)>,
 ) -> Result<Option<Step>, fit::FitError> {
-    for (c, fitted) in ranked {
-        // The step taken is refitted in full, from the candidate's grid shape: the
-        // candidates were weighed with the model's other shapes as they were.
-        let fitted = {
-            let mut m = model.clone();
-            m.add(c.effect, c.shape.clone());
-            refit_all(&mut m, p)?;
-            if m.physical().is_ok() {
-                m
-            } else {
-                fitted
-            }
-        };
-        let val = validation.map(|v| score(&fitted, v));
-        if let (Some(before), Some(after)) = (before, val) {
-            if after.rms.partial_cmp(&before.rms) != Some(std::cmp::Ordering::Less) {
-                refused.get_or_insert((c.effect, after));
-                continue;
-            }
+    let (Some(v), Some(before)) = (validation, before) else {
+        return ranked
+            .into_iter()
+            .next()
+            .map(|(c, fitted)| full_refit(model, p, &c, fitted).map(|m| (c, m, None)))
+            .transpose();
+    };
+    // The refits and scores are independent and deterministic: on the worker pool, then
+    // taken in BIC order.
+    let steps: Vec<Result<Step, fit::FitError>> = ranked
+        .into_par_iter()
+        .map(|(c, fitted)| {
+            let m = full_refit(model, p, &c, fitted)?;
+            let val = score(&m, v);
+            Ok((c, m, Some(val)))
+        })
+        .collect();
+    let mut best: Option<(f64, Step)> = None;
+    for step in steps {
+        let step = step?;
+        let Some(after) = step.2 else { continue };
+        let gain = (before.rms / after.rms).ln() / spent(&step.0).max(1) as f64;
+        if gain.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            refused.get_or_insert((step.0.effect, after));
+            continue;
         }
-        return Ok(Some((c, fitted, val)));
+        if best.as_ref().is_none_or(|b| gain > b.0) {
+            best = Some((gain, step));
+        }
     }
-    Ok(None)
+    Ok(best.map(|(_, step)| step))
+}
+
+/// The step as taken: `c` added to `model` at its grid shape and refitted in full (the
+/// ranking weighed it with the model's other shapes as they were), or `fitted` when that
+/// leaves the physical range.
+fn full_refit(
+    model: &Model,
+    p: &Prepared,
+    c: &diagnose::Candidate,
+    fitted: Model,
+) -> Result<Model, fit::FitError> {
+    let mut m = model.clone();
+    m.add(c.effect, c.shape.clone());
+    refit_all(&mut m, p)?;
+    Ok(if m.physical().is_ok() { m } else { fitted })
 }
 
 /// Whether `m` does at least as well as `before` on the validation record (true without one).
 fn validates(m: &Model, validation: Option<&Prepared>, before: Option<Score>) -> bool {
+    validates_within(m, validation, before, 0)
+}
+
+/// [`validates`], allowing the validation error to rise by what the information criterion
+/// charges for `slack` parameters: n_v·ln(RSS′/RSS) ≤ [`PENALTY`]·slack·ln n_v. A move that
+/// frees parameters (a removal, or a swap for a simpler effect) passes where the validation
+/// record does not pay for them. Removing a redundant effect raises the validation error by
+/// a hair (1.5·10⁻⁶ for an offset beside asymmetry at the floor), and "no worse at all" kept
+/// it.
+fn validates_within(
+    m: &Model,
+    validation: Option<&Prepared>,
+    before: Option<Score>,
+    slack: usize,
+) -> bool {
     match (validation, before) {
-        (Some(v), Some(b)) => score(m, v).rms <= b.rms,
+        (Some(v), Some(b)) => {
+            let n = v.len() as f64;
+            let price = PENALTY * slack as f64 * n.ln() / n;
+            2.0 * (score(m, v).rms / b.rms).ln() <= price
+        }
         _ => true,
     }
 }
@@ -320,7 +369,8 @@ const CLOSE_ERR: f64 = 0.5;
 /// parameters. Between the leading significant candidates (at most three), each is added and
 /// fully refitted, and they are ordered by the BIC, n·ln(RSS/n) + k·ln n, they buy per
 /// parameter — the one-column effect first when two explain the residual comparably
-/// (gravity vs ripple, Coulomb vs asymmetry). `--auto` takes the first that also validates.
+/// (gravity vs ripple, Coulomb vs asymmetry). With a validation record `--auto` takes the one
+/// that lowers the validation error most per parameter ([`best_validating`]).
 ///
 /// A candidate is taken only if its refitted model also has a lower BIC than the current one
 /// ([`bic`]): significance is judged at the candidate's grid shape against a plain
@@ -458,12 +508,16 @@ pub(super) fn bic(m: &Model, p: &Prepared) -> f64 {
         .iter()
         .map(|v| v * v)
         .sum();
-    let k: usize = 1 + m
+    n * (rss / n).max(1e-300).ln() + PENALTY * model_params(m) as f64 * n.ln()
+}
+
+/// Parameters a model spends: the inertia and every effect's [`spent_params`].
+fn model_params(m: &Model) -> usize {
+    1 + m
         .effects
         .iter()
         .map(|e| spent_params(e.kind, e.params.len()))
-        .sum::<usize>();
-    n * (rss / n).max(1e-300).ln() + PENALTY * k as f64 * n.ln()
+        .sum::<usize>()
 }
 
 /// Whether a fitted `new` effect contains `old` as a special case (a ripple of period 2π is
@@ -472,8 +526,8 @@ fn nests(new: EffectKind, old: EffectKind) -> bool {
     new.fit_traits().nests.contains(&old)
 }
 
-/// The closing swap pass of `--auto` (a move must not worsen the validation record, when
-/// there is one): greedy addition can take an effect whose columns span
+/// The closing swap pass of `--auto` (with a validation record, a move must not cost it more
+/// than the parameters the move frees are worth: [`validates_within`]): greedy addition can take an effect whose columns span
 /// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
 /// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
 /// against the current model, the best one taken, repeated while one improves (at most three):
@@ -493,6 +547,8 @@ fn swap_pass(
     // Effects a move took out may not come back in a later move: refitting re-searches shapes,
     // so "undo" can look better than the model it came from and the pass would oscillate.
     let mut taken_out: Vec<EffectKind> = Vec::new();
+    // What the model held when `val_before` was scored.
+    let held = model_params(model);
     for _ in 0..3 {
         // A move must lower BIC by a margin: two models that span the same columns (Coulomb +
         // asymmetry vs offset + asymmetry) tie up to rounding, and trading a physical effect
@@ -500,7 +556,14 @@ fn swap_pass(
         let current = bic(model, p) - SWAP_MARGIN;
         let mut best: Option<(f64, Model, Option<String>, String)> = None;
         let mut consider = |m: Model, added: Option<String>, replaced: String| {
-            if m.physical().is_err() || !coherent(&m) || !validates(&m, validation, val_before) {
+            // A move may cost the validation record what the parameters it frees were worth
+            // there (a removal, or a swap for a simpler effect); one that frees none must not
+            // worsen it.
+            let slack = held.saturating_sub(model_params(&m));
+            if m.physical().is_err()
+                || !coherent(&m)
+                || !validates_within(&m, validation, val_before, slack)
+            {
                 return;
             }
             let b = bic(&m, p);

@@ -334,7 +334,7 @@ pub fn fit_add(
 
 #[cfg(test)]
 mod tests {
-    use super::auto::{bic, choose};
+    use super::auto::{best_validating, bic, choose};
     use super::*;
     use crate::data::{Columns, Recording};
     use crate::diagnose::{self, Diagnosis};
@@ -414,6 +414,47 @@ mod tests {
             "{}",
             run.stop
         );
+    }
+
+    /// Two candidates that both lower the validation error: an offset (first in BIC order on
+    /// an estimation record about 1 rad, where gravity is a constant plus a slope) and gravity.
+    /// Validated about 2.6 rad, where gravity has fallen to half, the offset removes a third of
+    /// the error and gravity nearly all of it, more than the offset per parameter: gravity.
+    #[test]
+    fn the_step_that_validates_best_per_parameter_is_taken() {
+        let gravity = |x: f64, _: f64| 0.02 * x.sin();
+        let est = synthetic_around(1.0, gravity, FINE);
+        let val = synthetic_around(2.6, gravity, FINE);
+        let mut m0 = Model::baseline();
+        refit_all(&mut m0, &est).expect("fit");
+        let d = diagnose::diagnose(&m0, &est, &diagnose::Options::default());
+        let fitted = |k: EffectKind| {
+            let c = d
+                .candidates
+                .iter()
+                .find(|c| c.effect == k)
+                .expect("candidate")
+                .clone();
+            let mut m = m0.clone();
+            m.add(k, c.shape.clone());
+            refit_all(&mut m, &est).expect("fit");
+            (c, m)
+        };
+        let ranked = vec![fitted(EffectKind::Offset), fitted(EffectKind::Gravity)];
+        let before = score(&m0, &val);
+        // The premise: both lower the validation error, the offset by less.
+        let after: Vec<f64> = ranked.iter().map(|(_, m)| score(m, &val).rms).collect();
+        assert!(
+            after[1] < after[0] && after[0] < 0.9 * before.rms,
+            "{} → {after:?}",
+            before.rms
+        );
+        let mut refused = None;
+        let (c, _, _) = best_validating(&m0, &est, ranked, Some(&val), Some(before), &mut refused)
+            .expect("refit")
+            .expect("a step");
+        assert_eq!(c.effect, EffectKind::Gravity);
+        assert!(refused.is_none());
     }
 
     /// A rigid joint with a position ripple, recorded through a 2¹⁶-count encoder: the
