@@ -138,8 +138,8 @@ pub struct Trial {
     /// family is judged as: with the transmission's spring for compliance, on both encoders
     /// for backlash (fitted on the measured deflection), rigid otherwise.
     pub floor_val_refit: f64,
-    /// A gravity trial's strength beyond what a constant explains ([`referee::excess_with`]
-    /// over the floor); `None` for the other families.
+    /// Gravity's strength beyond what a constant explains ([`referee::excess_with`] over the
+    /// floor; in a pair, of gravity on its own); `None` without gravity.
     pub rho_beyond_offset: Option<f64>,
 }
 
@@ -230,9 +230,18 @@ pub fn generate_in(
     let floor_val_refit = referee::floor_on(&val, fc, path);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
     // Gravity whose period is long against the record's travel is an offset to any data:
-    // how much of it a constant cannot explain, from the truth.
-    let rho_beyond_offset = (families == [Family::Gravity])
-        .then(|| referee::excess_with(&est, fc, coulomb, true) / floor_est);
+    // how much of it a constant cannot explain, from the truth (on its own in a pair, as
+    // each effect is scaled on its own).
+    let rho_beyond_offset = match effects.as_slice() {
+        [(Family::Gravity, _)] => Some(referee::excess_with(&est, fc, coulomb, true) / floor_est),
+        _ => match effects.iter().find(|(f, _)| *f == Family::Gravity) {
+            Some(&g) => {
+                let r = rec(&[g], Which::Estimation)?;
+                Some(referee::excess_with(&r, fc, coulomb, true) / referee::floor(&r, fc))
+            }
+            None => None,
+        },
+    };
     let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
     if !families.is_empty() && !in_reach {
         return Err(Skip::Strength(rho));
@@ -348,7 +357,7 @@ pub struct Outcome {
     /// the step after compliance (a gap behind a spring, from the motor encoder alone).
     #[serde(default)]
     pub backlash_after_compliance: Option<bool>,
-    /// Gravity trials: the strength of what a constant cannot explain ([`Trial`]'s).
+    /// Trials with gravity: the strength of what a constant cannot explain ([`Trial`]'s).
     #[serde(default)]
     pub rho_beyond_offset: Option<f64>,
 }
@@ -387,11 +396,13 @@ impl Outcome {
         self.offset_for_gravity(self.top.as_deref())
     }
     fn offset_for_gravity(&self, named: Option<&str>) -> bool {
-        self.families == ["gravity"]
-            && named == Some("offset")
-            && self
-                .rho_beyond_offset
-                .is_some_and(|r| r < GRAVITY_AS_OFFSET)
+        self.families == ["gravity"] && named == Some("offset") && self.gravity_is_an_offset()
+    }
+    /// The trial's gravity is explained by a constant to within [`GRAVITY_AS_OFFSET`] of the
+    /// floor, by the truth.
+    fn gravity_is_an_offset(&self) -> bool {
+        self.rho_beyond_offset
+            .is_some_and(|r| r < GRAVITY_AS_OFFSET)
     }
     /// Null trial stayed quiet.
     pub fn null_ok(&self) -> bool {
@@ -401,13 +412,25 @@ impl Outcome {
     pub fn refit_ok(&self, bar: f64) -> bool {
         self.error.is_none() && self.val_ratio.is_some_and(|r| r <= bar)
     }
-    /// `--auto` added exactly the two hidden effects (an extra effect is an error).
+    /// `--auto` added exactly the two hidden effects (an extra effect is an error); an
+    /// offset stands for gravity that a constant explains to within [`GRAVITY_AS_OFFSET`] of
+    /// the floor, as in a single-effect trial.
     pub fn pair_ok(&self) -> bool {
-        let mut got = self.auto_added.clone();
-        got.sort();
-        let mut want = self.families.clone();
-        want.sort();
-        self.error.is_none() && self.families.len() == 2 && got == want
+        let sorted = |v: Vec<String>| {
+            let mut v = v;
+            v.sort();
+            v
+        };
+        let got = sorted(self.auto_added.clone());
+        let stand_in = !self.families.iter().any(|f| f == "offset") && self.gravity_is_an_offset();
+        let with_offset = self.families.iter().map(|f| match f.as_str() {
+            "gravity" => "offset".to_string(),
+            _ => f.clone(),
+        });
+        self.error.is_none()
+            && self.families.len() == 2
+            && (got == sorted(self.families.clone())
+                || (stand_in && got == sorted(with_offset.collect())))
     }
 }
 
@@ -603,4 +626,44 @@ pub fn long_record(seed: u64, seconds: f64, repeats: usize) -> Recording {
     }
     r.time = (0..r.input.len()).map(|k| k as f64 * r.dt).collect();
     r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(added: &[&str], beyond_offset: Option<f64>) -> Outcome {
+        Outcome {
+            truth: "t".into(),
+            seed: 0,
+            families: vec!["gravity".into(), "asymmetry".into()],
+            logging: "zoh".into(),
+            rate_hz: 1000.0,
+            encoder_bits: 16,
+            excitation: "pd".into(),
+            target_rho: 2.0,
+            rho: 2.0,
+            top: None,
+            verdict: None,
+            val_ratio: None,
+            auto_added: added.iter().map(|s| s.to_string()).collect(),
+            error: None,
+            floors: None,
+            backlash_after_compliance: None,
+            rho_beyond_offset: beyond_offset,
+        }
+    }
+
+    /// In a pair, an offset stands for gravity only where the truth says a constant explains
+    /// that gravity; an extra or missing effect still fails.
+    #[test]
+    fn an_offset_stands_for_gravity_in_a_pair_only_below_the_bar() {
+        assert!(pair(&["asymmetry", "gravity"], Some(2.0)).pair_ok());
+        assert!(pair(&["offset", "asymmetry"], Some(0.3)).pair_ok());
+        assert!(pair(&["gravity", "asymmetry"], Some(0.3)).pair_ok());
+        assert!(!pair(&["offset", "asymmetry"], Some(0.8)).pair_ok());
+        assert!(!pair(&["offset", "asymmetry"], None).pair_ok());
+        assert!(!pair(&["offset", "asymmetry", "coulomb"], Some(0.3)).pair_ok());
+        assert!(!pair(&["asymmetry"], Some(0.3)).pair_ok());
+    }
 }
