@@ -71,8 +71,9 @@ struct Bench {
 
 #[derive(Subcommand)]
 enum One {
-    /// Run and print one trial (`HIDDEN_DEBUG=1` for detail; `HIDDEN_DUMP=FILE` writes its
-    /// estimation record as a CSV for `hil-host diagnose`).
+    /// Run and print one trial (`HIDDEN_DEBUG=1` for detail; `HIDDEN_DUMP=FILE.csv` writes
+    /// its estimation record there and its validation record to FILE.val.csv, CSVs for
+    /// `hil-host diagnose`).
     One {
         /// Truth's name.
         truth: String,

@@ -468,7 +468,12 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     out.floors = Some([d.baseline.rms, d.baseline.noise_floor_rms, t.floor_est]);
     let debug = std::env::var_os("HIDDEN_DEBUG").is_some();
     if let Some(path) = std::env::var_os("HIDDEN_DUMP") {
-        dump(&t.est, std::path::Path::new(&path)).map_err(|e| format!("HIDDEN_DUMP: {e}"))?;
+        // The estimation record at FILE, the validation record beside it (FILE.val.csv).
+        let est = std::path::PathBuf::from(&path);
+        let val = est.with_extension("val.csv");
+        dump(&t.est, &est)
+            .and_then(|()| dump(&t.val, &val))
+            .map_err(|e| format!("HIDDEN_DUMP: {e}"))?;
     }
     if debug {
         eprintln!(

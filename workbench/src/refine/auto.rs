@@ -166,41 +166,33 @@ pub fn auto_observed(
                 stop: format!("reached --max-steps {max_steps}"),
             });
         }
-        let ranked = choose(model, p, &d, name)?;
-        if ranked.is_empty() {
-            // Every leading candidate fits only with a parameter outside its physical range,
-            // or leaves the model worse by BIC once refitted (the last diagnosis says which
-            // was next): stop with the model as it is.
-            return Ok(AutoRun {
-                steps: steps.list,
-                last: d,
-                stop: format!(
-                    "{name} (and every close candidate) fits only with a parameter outside its \
-                     physical range, or raises BIC once refitted"
-                ),
-            });
-        }
         // With a validation record a step must earn its place there: of the candidates that
         // lower the validation error, the one that lowers it most per parameter; when none
-        // does, the richer candidates behind them get the same test.
+        // does (or none refits within its physical range), the other significant candidates
+        // get the same test.
+        let ranked = choose(model, p, &d, name)?;
         let val_before = steps.list.last().and_then(|s| s.validation);
         let mut refused: Option<(EffectKind, Score)> = None;
         let mut taken = best_validating(model, p, ranked, validation, val_before, &mut refused)?;
         if taken.is_none() && validation.is_some() {
-            let more = richer(model, p, &d, name)?;
+            let more = the_rest(model, p, &d, name)?;
             taken = best_validating(model, p, more, validation, val_before, &mut refused)?;
         }
         let Some((c, fitted, val)) = taken else {
-            // Every candidate was refused on the validation record (without one the first
-            // is taken): name the best-ranked.
+            // Every candidate was refused on the validation record, or none refitted within
+            // its physical range with a lower BIC (the last diagnosis says which was next):
+            // stop with the model as it is.
             let stop = match (refused, val_before) {
                 (Some((effect, after)), Some(before)) => format!(
-                    "adding {effect} (or any close candidate) would not improve the validation \
+                    "adding {effect} (or any other candidate) would not improve the validation \
                      record (RMS {} → {}): the model as it is validates best",
                     crate::units::eng(before.rms),
                     crate::units::eng(after.rms)
                 ),
-                _ => format!("{name}: no candidate could be added"),
+                _ => format!(
+                    "{name} (and every close candidate) fits only with a parameter outside its \
+                     physical range, or raises BIC once refitted"
+                ),
             };
             return Ok(AutoRun {
                 steps: steps.list,
@@ -384,6 +376,15 @@ pub(super) fn choose(
     d: &Diagnosis,
     verdict: EffectKind,
 ) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
+    rank(model, p, &offered(p, d, verdict)?)
+}
+
+/// The candidates [`choose`] weighs: the verdict and at most two alternatives.
+fn offered<'a>(
+    p: &Prepared,
+    d: &'a Diagnosis,
+    verdict: EffectKind,
+) -> Result<Vec<&'a diagnose::Candidate>, fit::FitError> {
     let top = verdict_candidate(d, verdict)?;
     // Only simpler (or equally simple) alternatives may displace the verdict: BIC's penalty
     // is too light to stop a flexible, input-based fingerprint from fitting what two true
@@ -408,31 +409,34 @@ pub(super) fn choose(
             })
             .take(2),
     );
-    rank(model, p, &pool)
+    Ok(pool)
 }
 
-/// The significant candidates richer than the verdict (at most two, in the diagnosis's
+/// The significant candidates [`choose`] did not offer (at most three, in the diagnosis's
 /// order), ranked as [`choose`] ranks: what `--auto` tries when the validation record has
-/// refused every candidate [`choose`] offered. An offset that stands in for gravity over a
-/// short travel is the verdict there, and refused where the joint stands elsewhere; the
-/// gravity behind it then gets its turn, under the same validation test.
-pub(super) fn richer(
+/// refused every candidate [`choose`] offered, or none of them refitted within its physical
+/// range. An offset that stands in for gravity over a short travel is the verdict there, and
+/// refused where the joint stands elsewhere; the gravity behind it then gets its turn, under
+/// the same validation test. A dead band that spans Coulomb friction and an offset at once
+/// can be the verdict, with the offset and gravity offered beside it, while Coulomb, further
+/// down, is the step that validates.
+pub(super) fn the_rest(
     model: &Model,
     p: &Prepared,
     d: &Diagnosis,
     verdict: EffectKind,
 ) -> Result<Vec<(diagnose::Candidate, Model)>, fit::FitError> {
-    let top = verdict_candidate(d, verdict)?;
+    let offered: Vec<EffectKind> = offered(p, d, verdict)?.iter().map(|c| c.effect).collect();
     let traj = p.trajectory();
     let pool: Vec<&diagnose::Candidate> = d
         .candidates
         .iter()
         .filter(|c| {
             c.significant
-                && spent(c) > spent(top)
+                && !offered.contains(&c.effect)
                 && sim_plant::effects::resolved(c.effect, &traj, &c.shape)
         })
-        .take(2)
+        .take(3)
         .collect();
     rank(model, p, &pool)
 }
