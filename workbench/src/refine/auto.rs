@@ -137,7 +137,7 @@ pub fn auto_observed(
             for (added, replaced) in moves {
                 let verdict = match &added {
                     Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
-                    None => format!("remove {replaced} (lower BIC)"),
+                    None => format!("remove {replaced} (it no longer earns its place)"),
                 };
                 steps.push(AutoStep {
                     step: steps.list.len(),
@@ -531,7 +531,8 @@ fn nests(new: EffectKind, old: EffectKind) -> bool {
 }
 
 /// The closing swap pass of `--auto` (with a validation record, a move must not cost it more
-/// than the parameters the move frees are worth: [`validates_within`]): greedy addition can take an effect whose columns span
+/// than the parameters the move frees are worth, [`validates_within`], and a removal that
+/// passes that test is a candidate move whatever the estimation criterion says): greedy addition can take an effect whose columns span
 /// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
 /// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
 /// against the current model, the best one taken, repeated while one improves (at most three):
@@ -570,8 +571,13 @@ fn swap_pass(
             {
                 return;
             }
+            // With a validation record an effect stays only while it earns its place there:
+            // a removal that the validation record does not pay for is taken even where the
+            // estimation record's criterion keeps the effect (it fitted the estimation
+            // record's own detail, a Coulomb term beside asymmetry through a stick).
+            let earned_on_validation = added.is_none() && validation.is_some();
             let b = bic(&m, p);
-            if b < current && best.as_ref().is_none_or(|x| b < x.0) {
+            if (b < current || earned_on_validation) && best.as_ref().is_none_or(|x| b < x.0) {
                 best = Some((b, m, added, replaced));
             }
         };
