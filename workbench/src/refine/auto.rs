@@ -1,8 +1,9 @@
 //! `diagnose --auto`: rank → add → refit until nothing significant is left, choosing among
 //! close candidates by BIC per parameter (with a validation record, by the validation error
 //! each removes per parameter), then a delay probe and a swap pass over what it added. With a
-//! validation record every step must also lower the validation error, or `--auto` stops
-//! there.
+//! validation record every effect must earn its place there: a step must lower the
+//! validation error (when no significant candidate does, `--auto` stops), and the swap pass
+//! drops an effect whose removal the validation record does not pay for.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
