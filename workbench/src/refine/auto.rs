@@ -245,25 +245,24 @@ pub(super) fn best_validating(
     };
     // The refits and scores are independent and deterministic: on the worker pool, then
     // taken in BIC order.
-    let steps: Vec<Result<Step, fit::FitError>> = ranked
+    let steps: Vec<Result<(diagnose::Candidate, Model, Score), fit::FitError>> = ranked
         .into_par_iter()
         .map(|(c, fitted)| {
             let m = full_refit(model, p, &c, fitted)?;
             let val = score(&m, v);
-            Ok((c, m, Some(val)))
+            Ok((c, m, val))
         })
         .collect();
     let mut best: Option<(f64, Step)> = None;
     for step in steps {
-        let step = step?;
-        let Some(after) = step.2 else { continue };
-        let gain = (before.rms / after.rms).ln() / spent(&step.0).max(1) as f64;
+        let (c, m, after) = step?;
+        let gain = (before.rms / after.rms).ln() / spent(&c).max(1) as f64;
         if gain.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            refused.get_or_insert((step.0.effect, after));
+            refused.get_or_insert((c.effect, after));
             continue;
         }
         if best.as_ref().is_none_or(|b| gain > b.0) {
-            best = Some((gain, step));
+            best = Some((gain, (c, m, Some(after))));
         }
     }
     Ok(best.map(|(_, step)| step))
@@ -531,12 +530,13 @@ fn nests(new: EffectKind, old: EffectKind) -> bool {
     new.fit_traits().nests.contains(&old)
 }
 
-/// The closing swap pass of `--auto` (with a validation record, a move must not cost it more
-/// than the parameters the move frees are worth, [`validates_within`], and a removal that
-/// passes that test is a candidate move whatever the estimation criterion says): greedy addition can take an effect whose columns span
+/// The closing swap pass of `--auto`: greedy addition can take an effect whose columns span
 /// two true ones at once (asymmetry's positive-direction friction = offset + Coulomb; an
-/// input-based dead zone), and the true ones then add nothing new. Moves, each judged by BIC
-/// against the current model, the best one taken, repeated while one improves (at most three):
+/// input-based dead zone), and the true ones then add nothing new. With a validation record a
+/// move must not cost it more than the parameters the move frees are worth
+/// ([`validates_within`]), and a removal that passes that test is a candidate whatever the
+/// estimation criterion says. Moves, each judged by BIC against the current model, the best
+/// one taken, repeated while one improves (at most three):
 /// remove an added effect; replace it by another candidate that was significant at some step
 /// and spends no more parameters (or nests it); replace it by two such candidates spending no
 /// more parameters together. Returns the (added, removed) names of each move (added `None`:

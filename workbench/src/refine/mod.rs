@@ -389,19 +389,28 @@ mod tests {
     const J: f64 = 0.02;
     const FINE: f64 = 1_048_576.0;
 
+    /// Gravity's estimation record about 1 rad and its validation record about `x_val`, the
+    /// baseline fitted on the first and its diagnosis there.
+    fn gravity_about_1_rad_validated_at(
+        x_val: f64,
+    ) -> (Prepared, Prepared, Model, diagnose::Diagnosis) {
+        let gravity = |x: f64, _: f64| 0.02 * x.sin();
+        let est = synthetic_around(1.0, gravity, FINE);
+        let val = synthetic_around(x_val, gravity, FINE);
+        let mut m0 = Model::baseline();
+        refit_all(&mut m0, &est).expect("fit");
+        let d = diagnose::diagnose(&m0, &est, &diagnose::Options::default());
+        (est, val, m0, d)
+    }
+
     /// Gravity on a joint that moves a tenth of a radian about 1 rad: there it is a constant
     /// plus a slope below the noise, which an offset explains almost as well with one
     /// parameter fewer, and the verdict is the offset. A validation record about 3 rad refuses
     /// it (gravity there is a sixth of it), and `--auto` then takes the gravity behind it.
     #[test]
     fn a_simpler_step_that_does_not_validate_leaves_the_verdict_its_turn() {
-        let gravity = |x: f64, _: f64| 0.02 * x.sin();
-        let est = synthetic_around(1.0, gravity, FINE);
-        let val = synthetic_around(3.0, gravity, FINE);
-        let mut m0 = Model::baseline();
-        refit_all(&mut m0, &est).expect("fit");
+        let (est, val, m0, d) = gravity_about_1_rad_validated_at(3.0);
         // The premise: the offset is the verdict, and the one candidate offered.
-        let d = diagnose::diagnose(&m0, &est, &diagnose::Options::default());
         assert_eq!(d.verdict.add, Some(EffectKind::Offset), "{}", d.to_text());
         let offered = choose(&m0, &est, &d, EffectKind::Offset).expect("choose");
         assert!(offered.iter().all(|(c, _)| c.effect == EffectKind::Offset));
@@ -422,12 +431,7 @@ mod tests {
     /// the error and gravity nearly all of it, more than the offset per parameter: gravity.
     #[test]
     fn the_step_that_validates_best_per_parameter_is_taken() {
-        let gravity = |x: f64, _: f64| 0.02 * x.sin();
-        let est = synthetic_around(1.0, gravity, FINE);
-        let val = synthetic_around(2.6, gravity, FINE);
-        let mut m0 = Model::baseline();
-        refit_all(&mut m0, &est).expect("fit");
-        let d = diagnose::diagnose(&m0, &est, &diagnose::Options::default());
+        let (est, val, m0, d) = gravity_about_1_rad_validated_at(2.6);
         let fitted = |k: EffectKind| {
             let c = d
                 .candidates
