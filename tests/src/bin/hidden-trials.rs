@@ -20,7 +20,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use jointlab_tests::hidden::{self, refit_bar, Family, Logging, Outcome, Skip, PAIRS};
+use jointlab_tests::hidden::{self, refit_bar, Family, Logging, Outcome, Skip, INDISTINCT, PAIRS};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -314,11 +314,13 @@ fn pct(k: usize, n: usize) -> String {
 
 fn describe(o: &Outcome) -> String {
     format!(
-        "seed {} ρ {:.2}{} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
+        "seed {} ρ {:.2}{}{} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
         o.seed,
         o.rho,
         o.rho_beyond_offset
             .map_or(String::new(), |r| format!(" (beyond an offset {r:.2})")),
+        o.rho_beyond_spring
+            .map_or(String::new(), |r| format!(" (beyond a spring {r:.2})")),
         o.rate_hz,
         o.encoder_bits,
         o.excitation,
@@ -424,6 +426,21 @@ fn report(results: &[&Done], fails: bool) {
                 "",
                 pct(rf, nf)
             );
+            // How many of those passes name a simpler effect the truth says stands in.
+            let stand_ins: BTreeMap<&str, usize> = singles
+                .iter()
+                .filter(|o| o.rho >= 0.5 && o.stands_in(o.top.as_deref()))
+                .fold(BTreeMap::new(), |mut m, o| {
+                    *m.entry(o.families[0].as_str()).or_default() += 1;
+                    m
+                });
+            if !stand_ins.is_empty() {
+                let list: Vec<String> = stand_ins.iter().map(|(f, k)| format!("{f} {k}")).collect();
+                println!(
+                    "rank 1 a stand-in the truth allows at ρ ≥ 0.5 (offset for gravity, spring for a gap, beyond-simpler ρ < {INDISTINCT}): {}",
+                    list.join(", ")
+                );
+            }
             // Where the rank-1 misses at ρ ≥ 0.5 fall, by recording condition.
             let misses: Vec<&&&Outcome> = singles
                 .iter()

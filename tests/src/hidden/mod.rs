@@ -141,6 +141,9 @@ pub struct Trial {
     /// Gravity's strength beyond what a constant explains ([`referee::excess_with`] over the
     /// floor; in a pair, of gravity on its own); `None` without gravity.
     pub rho_beyond_offset: Option<f64>,
+    /// A lone backlash's strength beyond what a linear spring explains
+    /// ([`referee::Also::Spring`]); `None` otherwise.
+    pub rho_beyond_spring: Option<f64>,
 }
 
 impl Trial {
@@ -233,15 +236,23 @@ pub fn generate_in(
     // how much of it a constant cannot explain, from the truth (on its own in a pair, as
     // each effect is scaled on its own).
     let rho_beyond_offset = match effects.as_slice() {
-        [(Family::Gravity, _)] => Some(referee::excess_with(&est, fc, coulomb, true) / floor_est),
+        [(Family::Gravity, _)] => {
+            Some(referee::excess_with(&est, fc, coulomb, referee::Also::Offset) / floor_est)
+        }
         _ => match effects.iter().find(|(f, _)| *f == Family::Gravity) {
             Some(&g) => {
                 let r = rec(&[g], Which::Estimation)?;
-                Some(referee::excess_with(&r, fc, coulomb, true) / referee::floor(&r, fc))
+                Some(
+                    referee::excess_with(&r, fc, coulomb, referee::Also::Offset)
+                        / referee::floor(&r, fc),
+                )
             }
             None => None,
         },
     };
+    // A gap behind a spring: how much of it no linear transmission explains.
+    let rho_beyond_spring = (families == [Family::Backlash])
+        .then(|| referee::excess_with(&est, fc, coulomb, referee::Also::Spring) / floor_est);
     let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
     if !families.is_empty() && !in_reach {
         return Err(Skip::Strength(rho));
@@ -259,6 +270,7 @@ pub fn generate_in(
         floor_val,
         floor_val_refit,
         rho_beyond_offset,
+        rho_beyond_spring,
     })
 }
 
@@ -360,28 +372,33 @@ pub struct Outcome {
     /// Trials with gravity: the strength of what a constant cannot explain ([`Trial`]'s).
     #[serde(default)]
     pub rho_beyond_offset: Option<f64>,
+    /// Backlash trials: the strength of what a linear spring cannot explain ([`Trial`]'s).
+    #[serde(default)]
+    pub rho_beyond_spring: Option<f64>,
 }
 
-/// Below this strength beyond a constant, a gravity trial's record cannot tell gravity from
-/// an offset, and rank 1 `offset` is right.
-pub const GRAVITY_AS_OFFSET: f64 = 0.5;
+/// Below this strength beyond a simpler effect (the lower edge of the weak band), a record
+/// cannot tell the hidden effect from the simpler one, and naming the simpler one is right:
+/// an offset for gravity, the spring for a gap behind it.
+pub const INDISTINCT: f64 = 0.5;
 
 impl Outcome {
     /// Rank-1 candidate is the hidden effect.
     pub fn rank1_ok(&self) -> bool {
-        self.error.is_none()
-            && self.families.len() == 1
-            && (self.top.as_ref() == self.families.first()
-                || self.gravity_seen_as_offset()
-                || self.gap_after_spring(self.top.as_deref()))
+        self.names_hidden(self.top.as_deref())
     }
     /// The verdict (the significant missing effect) is the hidden one.
     pub fn verdict_ok(&self) -> bool {
+        self.names_hidden(self.verdict.as_deref())
+    }
+    /// `named` is the single hidden effect, a simpler one the truth says stands for it, or
+    /// (backlash) the spring after which `--auto` added the gap.
+    fn names_hidden(&self, named: Option<&str>) -> bool {
         self.error.is_none()
             && self.families.len() == 1
-            && (self.verdict.as_ref() == self.families.first()
-                || self.offset_for_gravity(self.verdict.as_deref())
-                || self.gap_after_spring(self.verdict.as_deref()))
+            && (named.is_some() && named == self.families.first().map(String::as_str)
+                || self.stands_in(named)
+                || self.gap_after_spring(named))
     }
     /// A backlash trial named `compliance` whose `--auto` then added backlash as the next
     /// step: a gap behind a spring, named as the step after the spring (motor encoder only).
@@ -390,19 +407,25 @@ impl Outcome {
             && named == Some("compliance")
             && self.backlash_after_compliance == Some(true)
     }
-    /// A gravity trial named `offset` whose gravity a constant explains to within
-    /// [`GRAVITY_AS_OFFSET`] of the floor: the record holds no more than an offset.
-    pub fn gravity_seen_as_offset(&self) -> bool {
-        self.offset_for_gravity(self.top.as_deref())
+    /// `named` is the simpler effect that explains the single hidden one to within
+    /// [`INDISTINCT`] of the floor, by the truth: `offset` for gravity, `compliance` for
+    /// backlash.
+    pub fn stands_in(&self, named: Option<&str>) -> bool {
+        let [hidden] = self.families.as_slice() else {
+            return false;
+        };
+        match (hidden.as_str(), named) {
+            ("gravity", Some("offset")) => self.gravity_is_an_offset(),
+            ("backlash", Some("compliance")) => {
+                self.rho_beyond_spring.is_some_and(|r| r < INDISTINCT)
+            }
+            _ => false,
+        }
     }
-    fn offset_for_gravity(&self, named: Option<&str>) -> bool {
-        self.families == ["gravity"] && named == Some("offset") && self.gravity_is_an_offset()
-    }
-    /// The trial's gravity is explained by a constant to within [`GRAVITY_AS_OFFSET`] of the
-    /// floor, by the truth.
+    /// The trial's gravity is explained by a constant to within [`INDISTINCT`] of the floor,
+    /// by the truth.
     fn gravity_is_an_offset(&self) -> bool {
-        self.rho_beyond_offset
-            .is_some_and(|r| r < GRAVITY_AS_OFFSET)
+        self.rho_beyond_offset.is_some_and(|r| r < INDISTINCT)
     }
     /// Null trial stayed quiet.
     pub fn null_ok(&self) -> bool {
@@ -413,7 +436,7 @@ impl Outcome {
         self.error.is_none() && self.val_ratio.is_some_and(|r| r <= bar)
     }
     /// `--auto` added exactly the two hidden effects (an extra effect is an error); an
-    /// offset stands for gravity that a constant explains to within [`GRAVITY_AS_OFFSET`] of
+    /// offset stands for gravity that a constant explains to within [`INDISTINCT`] of
     /// the floor, as in a single-effect trial.
     pub fn pair_ok(&self) -> bool {
         let sorted = |v: Vec<String>| {
@@ -585,6 +608,7 @@ pub fn run(
         floors: None,
         backlash_after_compliance: None,
         rho_beyond_offset: t.rho_beyond_offset,
+        rho_beyond_spring: t.rho_beyond_spring,
     };
     match catch_unwind(AssertUnwindSafe(|| judge(&t, &mut out))) {
         Ok(Ok(())) => {}
@@ -638,10 +662,14 @@ mod tests {
     use super::*;
 
     fn pair(added: &[&str], beyond_offset: Option<f64>) -> Outcome {
+        outcome(&["gravity", "asymmetry"], added, beyond_offset)
+    }
+
+    fn outcome(families: &[&str], added: &[&str], beyond_offset: Option<f64>) -> Outcome {
         Outcome {
             truth: "t".into(),
             seed: 0,
-            families: vec!["gravity".into(), "asymmetry".into()],
+            families: families.iter().map(|s| s.to_string()).collect(),
             logging: "zoh".into(),
             rate_hz: 1000.0,
             encoder_bits: 16,
@@ -656,6 +684,7 @@ mod tests {
             floors: None,
             backlash_after_compliance: None,
             rho_beyond_offset: beyond_offset,
+            rho_beyond_spring: None,
         }
     }
 
@@ -670,5 +699,31 @@ mod tests {
         assert!(!pair(&["offset", "asymmetry"], None).pair_ok());
         assert!(!pair(&["offset", "asymmetry", "coulomb"], Some(0.3)).pair_ok());
         assert!(!pair(&["asymmetry"], Some(0.3)).pair_ok());
+    }
+
+    /// A lone backlash named `compliance` counts only where the truth says a linear spring
+    /// explains the gap to within the bar, or where `--auto` added the gap after the spring.
+    #[test]
+    fn the_spring_stands_for_a_gap_only_below_the_bar() {
+        let backlash = |top: &str, beyond: Option<f64>, after: Option<bool>| {
+            let mut o = outcome(&["backlash"], &[], None);
+            o.top = Some(top.into());
+            o.rho_beyond_spring = beyond;
+            o.backlash_after_compliance = after;
+            o
+        };
+        assert!(backlash("backlash", Some(2.0), None).rank1_ok());
+        assert!(backlash("compliance", Some(0.3), Some(false)).rank1_ok());
+        assert!(backlash("compliance", Some(2.0), Some(true)).rank1_ok());
+        assert!(!backlash("compliance", Some(0.8), Some(false)).rank1_ok());
+        assert!(!backlash("compliance", None, None).rank1_ok());
+        assert!(!backlash("deadband", Some(0.1), None).rank1_ok());
+        // Gravity's stand-in is not the spring's.
+        let mut g = outcome(&["gravity"], &[], Some(0.1));
+        g.top = Some("compliance".into());
+        g.rho_beyond_spring = Some(0.1);
+        assert!(!g.rank1_ok());
+        g.top = Some("offset".into());
+        assert!(g.rank1_ok());
     }
 }
