@@ -189,11 +189,12 @@ fn zero_amplitude_is_the_null_plant() {
         // Stribeck at 0 is "Coulomb only".
         let s = rec(5, Some(Family::Stribeck), 0.0, &c, Which::Validation);
         assert_ne!(s.fine_position, null.fine_position);
-        // Quantization at 0: ideal converter, the noise is a torque disturbance, the log exact.
+        // Quantization at 0: ideal converter, the noise is a torque disturbance, the log exact;
+        // the referee's input adds the disturbance.
         let q = rec(5, Some(Family::Quantization), 0.0, &c, Which::Validation);
         let m = (q.dt / q.fine_dt).round() as usize;
         for k in 0..q.time.len() {
-            assert_eq!(q.input[k], q.fine_command[k * m]);
+            assert_eq!(q.input[k] + q.input_noise[k], q.fine_command[k * m]);
         }
         assert_eq!(q.input_noise, null.input_noise);
     }
@@ -241,8 +242,8 @@ fn quantiser_and_encoders_round_to_their_steps() {
         assert!((counts - counts.round()).abs() < 1e-6);
         let counts = r.load_position[k] / (TAU / 4096.0);
         assert!((counts - counts.round()).abs() < 1e-6);
-        // The logged command is exact.
-        assert_eq!(r.input[k], r.fine_command[k * m]);
+        // The logged command is exact (the referee's input adds the disturbance).
+        assert_eq!(r.input[k] + r.input_noise[k], r.fine_command[k * m]);
     }
 }
 

@@ -775,11 +775,11 @@ fn run(
         match (row, rec.rows.last()) {
             (Some(r), Some(last)) => {
                 let u = last.torque_cmd_nm;
-                if let Some(w) = disturbance {
-                    let torque = n * w.get(r).copied().unwrap_or(0.0);
+                let w = disturbance.and_then(|w| w.get(r).copied()).unwrap_or(0.0);
+                if disturbance.is_some() {
                     plant
                         .plant_mut()
-                        .set_environment(Environment::Torque { torque })
+                        .set_environment(Environment::Torque { torque: n * w })
                         .map_err(|e| format!("plant: {e}"))?;
                 }
                 let zoh_load = plant
@@ -798,7 +798,9 @@ fn run(
                         at_mid = Some(s);
                     }
                 });
-                log.fine_command.extend(std::iter::repeat_n(u, count));
+                // The command plus the disturbance at the motor: what the start model takes
+                // as input (the referee's excess is then the hidden effect alone).
+                log.fine_command.extend(std::iter::repeat_n(u + w, count));
                 log.command.push(u);
                 match (cond.logging, at_mid) {
                     (Logging::Mid, Some(s)) => {

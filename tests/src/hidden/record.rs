@@ -173,7 +173,8 @@ pub struct TruthRecord {
     /// The integrator's sub-step h (dt / an integer).
     pub fine_dt: f64,
     /// On the fine grid t = i·h: the noise-free command as held, before any hidden delay or
-    /// quantiser (what a model without that effect takes as the input).
+    /// quantiser, plus any torque disturbance applied after the D/A (what a model without
+    /// the hidden effect takes as the input, so the referee's excess is that effect alone).
     pub fine_command: Vec<f64>,
     /// True motor position on the fine grid.
     pub fine_position: Vec<f64>,

@@ -176,7 +176,8 @@ pub struct Measured {
     pub load_position: Vec<f64>,
     /// Motor position (truth, before the encoder), at the same instants as `motor_position`.
     pub motor_true: Vec<f64>,
-    /// The held command at every sub-step (before any hidden delay or quantiser).
+    /// The held command at every sub-step (before any hidden delay or quantiser), plus the
+    /// disturbance.
     pub fine_command: Vec<f64>,
     /// True motor position at every sub-step.
     pub fine_position: Vec<f64>,
@@ -246,7 +247,10 @@ pub fn simulate(
                 out.load_position.push(s[2]);
                 out.motor_true.push(s[0]);
             }
-            out.fine_command.push(u);
+            let w = disturbance.get(k).copied().unwrap_or(0.0);
+            // The command plus the torque disturbance after the D/A: what the start model
+            // takes as input (the referee's excess is then the hidden effect alone).
+            out.fine_command.push(u + w);
             out.fine_position.push(s[0]);
             // Applied torque at the sub-step midpoint time, delayed and quantised.
             let applied = |tt: f64| -> f64 {
@@ -264,7 +268,6 @@ pub fn simulate(
                 }
             };
             let t0 = t + j as f64 * h;
-            let w = disturbance.get(k).copied().unwrap_or(0.0);
             let (ua, ub, uc) = (
                 applied(t0) + w,
                 applied(t0 + 0.5 * h) + w,

@@ -229,7 +229,9 @@ impl Scenario {
                     rec.load_position[k] = encoder(s.q_load + sensor * e_load[k]);
                     trace.load_true[k] = s.q_load;
                 }
-                rec.fine_command.push(u);
+                // What the start model takes as input: the command, plus a torque disturbance
+                // after the converter (the referee's excess is then the hidden effect alone).
+                rec.fine_command.push(u + disturbance);
                 rec.fine_position.push(s.q_motor);
                 trace.fine_load.push(s.q_load);
                 let idx = (k * m + i) as isize - lag_whole as isize;
