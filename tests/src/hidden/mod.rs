@@ -100,7 +100,8 @@ pub fn cutoff(dt: f64, counts_per_rev: f64) -> f64 {
 pub enum Skip {
     /// The truth's loop diverged with the effect(s).
     Diverged(String),
-    /// The strength could not be brought near its target (ρ not finite, or over 20× it).
+    /// The strength could not be brought near its target (ρ not finite, or over 20× it; a
+    /// null trial's at or above [`INDISTINCT`]).
     Strength(f64),
     /// The joint hardly moved (its true position spans fewer than [`MIN_TRAVEL_COUNTS`]
     /// encoder counts on a record): stuck in its friction, nothing to identify.
@@ -253,8 +254,15 @@ pub fn generate_in(
     // A gap behind a spring: how much of it no linear transmission explains.
     let rho_beyond_spring = (families == [Family::Backlash])
         .then(|| referee::excess_with(&est, fc, coulomb, referee::Also::Spring) / floor_est);
-    let in_reach = rho.is_finite() && rho <= 20.0 * target_rho.max(1.0);
-    if !families.is_empty() && !in_reach {
+    // A null trial's joint must hold nothing the start model lacks, by the truth: a base
+    // joint whose own dynamics (the `rk4` truth's stiff transmission, on a fast, fine record)
+    // the start model leaves at half a floor or more is not a null.
+    let in_reach = if families.is_empty() {
+        rho < INDISTINCT
+    } else {
+        rho.is_finite() && rho <= 20.0 * target_rho.max(1.0)
+    };
+    if !in_reach {
         return Err(Skip::Strength(rho));
     }
     Ok(Trial {
