@@ -201,16 +201,14 @@ pub fn excess_with(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool, also: Also)
     let u = held(0);
     let mut cols = vec![a, v.clone()];
     // The start model's Coulomb column: the sign of the true velocity, band-limited.
-    let sign: Vec<f64> = if coulomb {
+    let sign: Option<Vec<f64>> = coulomb.then(|| {
         filter(&detrended, |f| Complex64::new(0.0, w(f)))
             .into_iter()
             .map(|v| (v + slope).signum())
             .collect()
-    } else {
-        Vec::new()
-    };
-    if coulomb {
-        cols.push(derivative(&sign, 0));
+    });
+    if let Some(sign) = &sign {
+        cols.push(derivative(sign, 0));
     }
     let keep = interior(n, fc);
     match also {
@@ -219,10 +217,10 @@ pub fn excess_with(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool, also: Also)
         Also::Spring => {
             cols.push(derivative(&detrended, 3));
             cols.push(derivative(&detrended, 4));
-            if coulomb {
+            if let Some(sign) = &sign {
                 // Multiplied through as well: the motor's Coulomb torque times J_l·s² + c·s + k.
-                cols.push(derivative(&sign, 1));
-                cols.push(derivative(&sign, 2));
+                cols.push(derivative(sign, 1));
+                cols.push(derivative(sign, 2));
             }
             let du = cols.len();
             cols.push(held(1));
@@ -326,6 +324,37 @@ pub fn rho(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
 mod tests {
     use super::*;
 
+    /// A truth record from a fine grid (`sub` sub-steps per sample of `dt`): the positions
+    /// logged exactly at the samples, the given input noise, inertias `(J, J2)`.
+    fn fine_record(
+        dt: f64,
+        sub: usize,
+        fine_position: Vec<f64>,
+        fine_command: Vec<f64>,
+        (inertia, inertia_load): (f64, f64),
+        input_noise: Vec<f64>,
+    ) -> TruthRecord {
+        let n = fine_position.len() / sub;
+        let sampled: Vec<f64> = (0..n).map(|k| fine_position[k * sub]).collect();
+        TruthRecord {
+            dt,
+            time: (0..n).map(|k| k as f64 * dt).collect(),
+            input: vec![0.0; n],
+            position: sampled.clone(),
+            load_position: Vec::new(),
+            input_noise,
+            position_true: sampled,
+            fine_dt: dt / sub as f64,
+            fine_command,
+            fine_position,
+            inertia,
+            inertia_load,
+            spring: None,
+            load_position_true: Vec::new(),
+            gear_ratio: 1.0,
+        }
+    }
+
     /// A rigid joint driven by a smooth torque leaves no excess; white input noise of σ
     /// leaves a floor of σ times the low-pass's noise gain (√(2·f_c·∫…) ≈ √(2f_c) for a
     /// sharp filter).
@@ -356,23 +385,7 @@ mod tests {
         let noise: Vec<f64> = (0..n)
             .map(|_| 0.01 * (rng.random::<f64>() - 0.5) * 12f64.sqrt())
             .collect();
-        let rec = TruthRecord {
-            dt,
-            time: (0..n).map(|k| k as f64 * dt).collect(),
-            input: vec![0.0; n],
-            position: (0..n).map(|k| x[k * sub]).collect(),
-            load_position: Vec::new(),
-            input_noise: noise.clone(),
-            position_true: (0..n).map(|k| x[k * sub]).collect(),
-            fine_dt: h,
-            fine_command: u,
-            fine_position: x,
-            inertia: j,
-            inertia_load: 0.0,
-            spring: None,
-            load_position_true: Vec::new(),
-            gear_ratio: 1.0,
-        };
+        let rec = fine_record(dt, sub, x, u, (j, 0.0), noise.clone());
         let fl = floor(&rec, 40.0);
         let band = (2.0 * 40.0 * dt).sqrt() * rms(&noise);
         assert!((fl / band - 1.0).abs() < 0.25, "floor {fl} vs {band}");
@@ -418,23 +431,7 @@ mod tests {
                 u[i] += (torque * e((i as f64 + 0.5) * h)).re;
             }
         }
-        let rec = TruthRecord {
-            dt,
-            time: (0..n).map(|k| k as f64 * dt).collect(),
-            input: vec![0.0; n],
-            position: (0..n).map(|k| x[k * sub]).collect(),
-            load_position: Vec::new(),
-            input_noise: vec![0.0; n],
-            position_true: (0..n).map(|k| x[k * sub]).collect(),
-            fine_dt: h,
-            fine_command: u.clone(),
-            fine_position: x.clone(),
-            inertia: jm,
-            inertia_load: jl,
-            spring: None,
-            load_position_true: Vec::new(),
-            gear_ratio: 1.0,
-        };
+        let rec = fine_record(dt, sub, x.clone(), u.clone(), (jm, jl), vec![0.0; n]);
         let size = rms(&u);
         let rigid = excess(&rec, 40.0, false);
         let spring = excess_with(&rec, 40.0, false, Also::Spring);
@@ -483,23 +480,7 @@ mod tests {
                 v += held / j * h;
             }
         }
-        let rec = TruthRecord {
-            dt,
-            time: (0..n).map(|k| k as f64 * dt).collect(),
-            input: vec![0.0; n],
-            position: (0..n).map(|k| q[k * sub]).collect(),
-            load_position: Vec::new(),
-            input_noise: vec![0.0; n],
-            position_true: (0..n).map(|k| q[k * sub]).collect(),
-            fine_dt: h,
-            fine_command: u.clone(),
-            fine_position: q,
-            inertia: j,
-            inertia_load: 0.0,
-            spring: None,
-            load_position_true: Vec::new(),
-            gear_ratio: 1.0,
-        };
+        let rec = fine_record(dt, sub, q, u.clone(), (j, 0.0), vec![0.0; n]);
         let ex = excess(&rec, 40.0, false);
         assert!(ex < 1e-3 * rms(&u), "excess {ex} of {}", rms(&u));
     }
