@@ -239,11 +239,7 @@ fn solve_compensated(
     let nm = noise_of(&g);
     g -= &nm;
     let ginv = gram_inverse(&g);
-    let xty = DVector::from_iterator(
-        p,
-        cols.iter()
-            .map(|c| c.iter().zip(y).map(|(a, b)| a * b).sum()),
-    );
+    let xty = DVector::from_iterator(p, cols.iter().map(|c| sim_plant::lstsq::dot(c, y)));
     let theta = &ginv * xty;
     let mut residual = y.to_vec();
     for (j, c) in cols.iter().enumerate() {
@@ -252,7 +248,7 @@ fn solve_compensated(
             *r -= t * x;
         }
     }
-    let rss: f64 = residual.iter().map(|r| r * r).sum();
+    let rss = sim_plant::lstsq::dot(&residual, &residual);
     if theta.iter().any(|t| !t.is_finite()) {
         return Err(FitError::NonFiniteResult { what: "estimates" });
     }

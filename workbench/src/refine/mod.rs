@@ -36,7 +36,7 @@ pub use super::metrics::Score;
 use super::model::Model;
 use super::residual::{self, Prepared};
 pub use search::Only;
-use search::{search_shapes, StickStart};
+use search::{search_shapes, On, StickStart};
 
 /// Equation-error score of a model on prepared data (no refit).
 pub fn score(model: &Model, p: &Prepared) -> Score {
@@ -189,9 +189,10 @@ fn refit_from(
     start: StickStart,
     only: Only,
 ) -> Result<(), fit::FitError> {
-    residual::refit(model, p)?;
-    search_shapes(model, p, start, only);
-    let before = residual::refit(model, p)?.rss;
+    let on = On::new(p);
+    on.refit(model)?;
+    search_shapes(model, &on, start, only);
+    let before = on.refit(model)?.rss;
     let lm_idx: Vec<usize> = model
         .effects
         .iter()
@@ -224,7 +225,7 @@ fn refit_from(
     let lm = fit::levenberg_marquardt(
         |x| {
             let mut m = apply(x);
-            residual::refit(&mut m, p)
+            on.refit(&mut m)
                 .map(|f| f.residual)
                 .unwrap_or_else(|_| vec![f64::INFINITY; p.len()])
         },
@@ -232,7 +233,7 @@ fn refit_from(
         30,
     );
     let mut m = apply(&lm.x);
-    if let Ok(f) = residual::refit(&mut m, p) {
+    if let Ok(f) = on.refit(&mut m) {
         if f.rss < before && m.physical_split().is_ok() {
             *model = m;
         }

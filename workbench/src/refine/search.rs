@@ -8,7 +8,35 @@ use sim_plant::effects::{backlash, EffectKind, Shape, ShapeSearch, SmoothShape};
 use super::super::diagnose;
 use super::super::fit::{self, gram, gram_inverse};
 use super::super::model::Model;
-use super::super::residual::{self, Prepared};
+use super::super::residual::{self, ColumnMemo, Prepared};
+
+/// A record as the shape searches refit on it: with the memo of effect columns that spares
+/// the effects a search does not move their rebuilding at every one of its refits.
+pub(super) struct On<'a> {
+    pub(super) record: &'a Prepared,
+    pub(super) memo: ColumnMemo,
+}
+
+impl<'a> On<'a> {
+    pub(super) fn new(record: &'a Prepared) -> Self {
+        On {
+            record,
+            memo: ColumnMemo::new(),
+        }
+    }
+
+    /// [`residual::refit`] on the record, through the memo.
+    pub(super) fn refit(&self, m: &mut Model) -> Result<fit::LsFit, fit::FitError> {
+        residual::refit_with(m, self.record, Some(&self.memo))
+    }
+}
+
+impl std::ops::Deref for On<'_> {
+    type Target = Prepared;
+    fn deref(&self) -> &Prepared {
+        self.record
+    }
+}
 
 /// Standard deviations of the passed noise's energy charged to a shape (see [`ls_rss`]): about
 /// the most favourable deviation a search over a few hundred shapes finds by chance
@@ -37,9 +65,9 @@ const NOISE_SD_MARGIN: f64 = 3.0;
 /// ([`Model::physical_split`]): a positive amplitude −J2/J1 — at such a shape the column is a
 /// broadband correction no two-mass joint makes — or a backlash that disagrees with it on
 /// J2. Such a model could not be saved, and `--auto` would not keep it.
-fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
+fn ls_rss(m: &mut Model, p: &On) -> f64 {
     let noise_aware = m.has(EffectKind::Compliance);
-    residual::refit(m, p).map_or(f64::INFINITY, |f| {
+    p.refit(m).map_or(f64::INFINITY, |f| {
         if noise_aware && m.physical_split().is_err() {
             f64::INFINITY
         } else if noise_aware {
@@ -55,7 +83,7 @@ fn ls_rss(m: &mut Model, p: &Prepared) -> f64 {
 /// the first best in `xs`'s order wins, as one after the other.
 fn line_search(
     model: &mut Model,
-    p: &Prepared,
+    p: &On,
     e: usize,
     xs: &[f64],
     set: &(dyn Fn(&mut Model, usize, f64) + Sync),
@@ -89,7 +117,7 @@ fn line_search(
 /// off against each other (Coulomb smoothing × sign lead, mode damping × frequency).
 fn grid_search(
     model: &mut Model,
-    p: &Prepared,
+    p: &On,
     e: usize,
     outer: &[f64],
     set_outer: &(dyn Fn(&mut Model, usize, f64) + Sync),
@@ -118,7 +146,7 @@ fn grid_search(
 /// keeps `keep` (the grid point) if that is still better.
 fn golden(
     model: &mut Model,
-    p: &Prepared,
+    p: &On,
     e: usize,
     (mut lo, mut hi): (f64, f64),
     keep: f64,
@@ -154,10 +182,10 @@ fn golden(
 /// The periods the effect's screen (`sim_plant::effects::screen`: the position periodogram
 /// of a residual, in steps the travel resolves) picks out of the residual of `model` without
 /// effect `e`.
-fn screened_periods(model: &Model, p: &Prepared, e: usize, acc: SmoothShape) -> Vec<f64> {
+fn screened_periods(model: &Model, p: &On, e: usize, acc: SmoothShape) -> Vec<f64> {
     let mut m = model.clone();
     let kind = m.effects.remove(e).kind;
-    let Ok(fit) = residual::refit(&mut m, p) else {
+    let Ok(fit) = p.refit(&mut m) else {
         return Vec::new();
     };
     let (shapes, _) = sim_plant::effects::screen(kind, &p.trajectory(), &fit.residual);
@@ -195,7 +223,7 @@ fn set_delay(m: &mut Model, e: usize, tau: f64) {
 ///   `search_stick`).
 ///
 /// An asymmetry next to a Coulomb term then takes Coulomb's sign shape.
-pub(super) fn search_shapes(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
+pub(super) fn search_shapes(model: &mut Model, p: &On, start: StickStart, only: Only) {
     search_each(model, p, start, only);
     // Direction-dependent friction switches with the Coulomb friction: an asymmetry next to a
     // Coulomb term takes its sign shape (an independent one would buy reversal-shape freedom
@@ -226,7 +254,7 @@ pub enum Only {
     From(usize),
 }
 
-fn search_each(model: &mut Model, p: &Prepared, start: StickStart, only: Only) {
+fn search_each(model: &mut Model, p: &On, start: StickStart, only: Only) {
     let dt = p.dt;
     let first = match only {
         Only::All => 0,
@@ -319,7 +347,7 @@ fn set_mode_damping(m: &mut Model, e: usize, z: f64) {
 /// both. A joint grid of frequencies (the diagnosis's own grid plus ±30 % around the current
 /// mode in 5 % steps, up to 0.45× the sample rate) × damping ratios 0.02–0.8, then alternating
 /// golden sections on ln f and ln ζ.
-fn search_compliance(model: &mut Model, p: &Prepared, e: usize) {
+fn search_compliance(model: &mut Model, p: &On, e: usize) {
     let fs = 1.0 / p.dt;
     let f_max = 0.45 * fs;
     let f0 = model.effects[e].shape.compliance_frequency;
@@ -430,7 +458,7 @@ fn set_load_time(m: &mut Model, e: usize, tau: f64) {
 /// With a load position (see `backlash::measured_column`) the column does not depend on the
 /// width: the width is the measured one (`backlash::measured_width`) and only τ is searched
 /// (the same τ grid, then a golden section on ln τ).
-fn search_backlash(model: &mut Model, p: &Prepared, e: usize) {
+fn search_backlash(model: &mut Model, p: &On, e: usize) {
     let taus = [
         0.03, 0.05, 0.08, 0.13, 0.2, 0.32, 0.5, 0.8, 1.3, 2.0, 3.2, 5.0, 10.0, 0.0,
     ];
@@ -503,7 +531,7 @@ fn set_stick(m: &mut Model, e: usize, vh: f64) {
 ///   at every fast reversal and the RSS has an interior minimum);
 /// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
 ///   once the stick phases are no longer its to explain. LM then refines vs.
-fn search_stick(model: &mut Model, p: &Prepared, e: usize, start: StickStart) {
+fn search_stick(model: &mut Model, p: &On, e: usize, start: StickStart) {
     let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if vmax.is_nan() || vmax <= 0.0 {
         return;
@@ -548,7 +576,7 @@ fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
 
 /// The sign lead and smoothing ε of a stribeck term together with the Coulomb terms' (see
 /// [`search_sign`]).
-fn search_dry_sign(model: &mut Model, p: &Prepared, e: usize, search_lead: bool) {
+fn search_dry_sign(model: &mut Model, p: &On, e: usize, search_lead: bool) {
     let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
     let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
     search_sign(model, p, e, &set_eps, &set_lead, search_lead);
@@ -603,7 +631,7 @@ impl StickStart {
 /// joint grid — the two trade off against each other — then the lead by golden section.
 fn search_sign(
     model: &mut Model,
-    p: &Prepared,
+    p: &On,
     e: usize,
     set_eps: &(dyn Fn(&mut Model, usize, f64) + Sync),
     set_lead: &(dyn Fn(&mut Model, usize, f64) + Sync),
@@ -642,7 +670,7 @@ fn set_quantum(m: &mut Model, e: usize, d: f64) {
 /// steps, so it decorrelates once ε·K ≈ ½. A dense scan ±5 % around the diagnosis's step at a
 /// relative spacing of 0.15/K (0.01 %–0.5 %), then golden section between the neighbours of the
 /// best.
-fn search_quantum(model: &mut Model, p: &Prepared, e: usize) {
+fn search_quantum(model: &mut Model, p: &On, e: usize) {
     let d0 = model.effects[e].shape.quantum;
     if d0 <= 0.0 {
         return;

@@ -7,7 +7,7 @@ use sim_plant::effects::{fingerprint, EffectKind, Shape, Trajectory};
 use super::super::diff;
 use super::super::fit::{self, LsFit};
 use super::super::model::Model;
-use super::Prepared;
+use super::{ColumnMemo, Prepared};
 
 /// Whether `kind`'s fingerprint columns get the input's zero-phase low-pass ("parallel
 /// filtering"): the measured input is filtered (see [`Prepared::input`]), so a torque that is
@@ -59,12 +59,20 @@ pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f
 
 /// Regressor columns of every parameter of a model, in [`Model::params`] order.
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
+    columns_with(model, p, None)
+}
+
+/// [`columns`], each effect's from `memo` when it holds them.
+fn columns_with(model: &Model, p: &Prepared, memo: Option<&ColumnMemo>) -> Vec<Vec<f64>> {
     use rayon::prelude::*;
     let mut cols = vec![p.acceleration.clone()];
     let per: Vec<Vec<Vec<f64>>> = model
         .effects
         .par_iter()
-        .map(|e| model_columns(e.kind, p, &e.shape))
+        .map(|e| match memo {
+            Some(m) => m.columns(e.kind, p, &e.shape).as_ref().clone(),
+            None => model_columns(e.kind, p, &e.shape),
+        })
         .collect();
     for (e, mut c) in model.effects.iter().zip(per) {
         c.resize(e.params.len(), vec![0.0; p.len()]);
@@ -111,7 +119,12 @@ pub struct Design {
 /// friction (see [`static_friction`]) carry no information on the amplitudes: their rows are
 /// zeroed.
 pub fn design(model: &Model, p: &Prepared) -> Design {
-    let all = columns(model, p);
+    design_with(model, p, None)
+}
+
+/// [`design`], the effects' columns from `memo` when it holds them.
+fn design_with(model: &Model, p: &Prepared, memo: Option<&ColumnMemo>) -> Design {
+    let all = columns_with(model, p, memo);
     let stuck = static_friction(model, p, &all).map(|s| s.stuck(p));
     let params = model.params();
     let owner = model.param_owners();
@@ -374,7 +387,17 @@ pub fn noise_energy_sd(h: &[f64], sigma2: f64, rows: usize) -> f64 {
 ///
 /// [`Param::bound_reached`]: crate::model::Param::bound_reached
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
-    let mut fit = refit_unbounded(model, p)?;
+    refit_with(model, p, None)
+}
+
+/// [`refit`], the effects' columns from `memo` when it holds them (the shape searches': see
+/// [`ColumnMemo`]). The same fit, bit for bit.
+pub fn refit_with(
+    model: &mut Model,
+    p: &Prepared,
+    memo: Option<&ColumnMemo>,
+) -> Result<LsFit, fit::FitError> {
+    let mut fit = refit_unbounded(model, p, memo)?;
     let mut held = Vec::new();
     loop {
         let params = model.params();
@@ -396,7 +419,7 @@ pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
         params[i].value = bound;
         params[i].free = false;
         held.push(i);
-        let refit = refit_unbounded(model, p);
+        let refit = refit_unbounded(model, p, memo);
         if refit.is_err() {
             // Leave the model as the caller gave it: free where it was free.
             let mut params = model.params_mut();
@@ -415,8 +438,12 @@ pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
 }
 
 /// [`refit`] without the bounds.
-fn refit_unbounded(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
-    let d = design(model, p);
+fn refit_unbounded(
+    model: &mut Model,
+    p: &Prepared,
+    memo: Option<&ColumnMemo>,
+) -> Result<LsFit, fit::FitError> {
+    let d = design_with(model, p, memo);
     // The compensation belongs to parameter estimation only: the diagnosis's projections
     // (`diagnose`, `refine::best_shape`) test what a column adds, for which plain least squares
     // is the right residual.

@@ -12,13 +12,16 @@
 //!   drift — the report says which residual it shows.
 //!
 //! The parts: `prepared` the recording differentiated, with its noise estimates;
-//! `design` the regressor columns, the bias-compensated refit and the prediction; this file
+//! `design` the regressor columns, the bias-compensated refit and the prediction; `memo` the
+//! columns kept across a shape search's refits; this file
 //! the two residuals and the simulator they share with `compare`.
 
 mod design;
+mod memo;
 mod prepared;
 
 pub use design::*;
+pub use memo::ColumnMemo;
 pub use prepared::*;
 
 use sim_plant::effects::{fingerprint, Trajectory};
