@@ -10,7 +10,7 @@ use sim_plant::effects::{EffectKind, Shape};
 
 use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
-use super::super::model::Model;
+use super::super::model::{EffectEntry, Model};
 use super::super::residual::{self, Prepared};
 use rayon::prelude::*;
 
@@ -541,7 +541,7 @@ fn nests(new: EffectKind, old: EffectKind) -> bool {
 /// and spends no more parameters (or nests it); replace it by two such candidates spending no
 /// more parameters together. Returns the (added, removed) names of each move (added `None`:
 /// a removal).
-fn swap_pass(
+pub(super) fn swap_pass(
     model: &mut Model,
     p: &Prepared,
     start_len: usize,
@@ -586,13 +586,13 @@ fn swap_pass(
         // fresh candidates that spend no more parameters.
         // (Each trial searches only the shapes of what it adds, after the model's others.)
         let first_new = model.effects.len() - 1;
-        let mut trials: Vec<(Model, Option<String>, String)> = Vec::new();
+        let mut trials: Vec<(Model, usize, Option<String>, String)> = Vec::new();
         for i in start_len..model.effects.len() {
             let old = &model.effects[i];
             let (old_kind, old_spent) = (old.kind, spent_params(old.kind, old.params.len()));
             let mut base = model.clone();
             base.remove(i);
-            trials.push((base.clone(), None, old_kind.name().into()));
+            trials.push((base.clone(), first_new, None, old_kind.name().into()));
             let fresh: Vec<(&diagnose::Candidate, EffectKind)> = seen
                 .iter()
                 .map(|c| (c, c.effect))
@@ -605,7 +605,29 @@ fn swap_pass(
                 }
                 let mut m = base.clone();
                 m.add(*ka, a.shape.clone());
-                trials.push((m, Some(a.effect.name().into()), old_kind.name().into()));
+                trials.push((
+                    m.clone(),
+                    first_new,
+                    Some(a.effect.name().into()),
+                    old_kind.name().into(),
+                ));
+                // Dry friction for dry friction (asymmetry's step for Coulomb's sign): also at
+                // the sign shape the model had, unsearched. The two span the same sliding
+                // torque with an offset beside them, and a search of the newcomer's
+                // reversal on the estimation record alone can validate worse than the shape
+                // the model already earned there.
+                if let Some(kept) = sign_shape_of(old, a) {
+                    if let Some(e) = m.effects.last_mut() {
+                        e.shape = kept;
+                    }
+                    let searched_none = m.effects.len();
+                    trials.push((
+                        m,
+                        searched_none,
+                        Some(a.effect.name().into()),
+                        old_kind.name().into(),
+                    ));
+                }
                 for (b, kb) in &fresh {
                     if kb <= ka || !b.significant || sa + spent_params(*kb, b.df) > old_spent {
                         continue;
@@ -615,6 +637,7 @@ fn swap_pass(
                     m.add(*kb, b.shape.clone());
                     trials.push((
                         m,
+                        first_new,
                         Some(format!("{} + {}", a.effect, b.effect)),
                         old_kind.name().into(),
                     ));
@@ -625,12 +648,12 @@ fn swap_pass(
         // results collected in the order above (the same choice as one after the other).
         let refits: Vec<_> = trials
             .par_iter()
-            .map(|(m, _, _)| {
+            .map(|(m, from, _, _)| {
                 let mut m = m.clone();
-                refit_added(&mut m, p, first_new).map(|()| m)
+                refit_added(&mut m, p, *from).map(|()| m)
             })
             .collect();
-        for (refit, (_, added, replaced)) in refits.into_iter().zip(trials) {
+        for (refit, (_, _, added, replaced)) in refits.into_iter().zip(trials) {
             consider(refit?, added, replaced);
         }
         match best {
@@ -647,6 +670,19 @@ fn swap_pass(
         }
     }
     Ok(moves)
+}
+
+/// `old`'s shape for a `new` effect in its place, where both are dry friction whose columns
+/// switch with the sign of the velocity (Coulomb, asymmetry): the reversal shape (ε, lead,
+/// stick window) carries over.
+fn sign_shape_of(old: &EffectEntry, new: &diagnose::Candidate) -> Option<Shape> {
+    let signed = |k: EffectKind| k.fit_traits().sign_shaped;
+    (signed(old.kind) && signed(new.effect) && old.kind != new.effect).then(|| Shape {
+        sign_epsilon: old.shape.sign_epsilon,
+        sign_lead: old.shape.sign_lead,
+        stick_velocity: old.shape.stick_velocity,
+        ..new.shape.clone()
+    })
 }
 
 /// The delay probe of `--auto`, once the diagnosis finds nothing more. The diagnosis tests a

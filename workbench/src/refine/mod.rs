@@ -335,7 +335,7 @@ pub fn fit_add(
 
 #[cfg(test)]
 mod tests {
-    use super::auto::{best_validating, bic, choose};
+    use super::auto::{best_validating, bic, choose, swap_pass};
     use super::*;
     use crate::data::{Columns, Recording};
     use crate::diagnose::{self, Diagnosis};
@@ -460,6 +460,43 @@ mod tests {
             .expect("a step");
         assert_eq!(c.effect, EffectKind::Gravity);
         assert!(refused.is_none());
+    }
+
+    /// Coulomb friction and an offset, read by `--auto` as asymmetry and an offset (the
+    /// step column spans half an offset and Coulomb at once, so it can go first): the closing
+    /// swap pass puts Coulomb, one parameter fewer for the same sliding torque, in
+    /// asymmetry's place.
+    #[test]
+    fn the_swap_pass_trades_asymmetry_for_coulomb_beside_an_offset() {
+        let truth = |_: f64, v: f64| 0.02 * v.signum() + 0.015;
+        let est = synthetic(truth, FINE);
+        let val = synthetic_around(0.7, truth, FINE);
+        let mut m0 = Model::baseline();
+        refit_all(&mut m0, &est).expect("fit");
+        let d = diagnose::diagnose(&m0, &est, &diagnose::Options::default());
+        let start_len = m0.effects.len();
+        let mut m = m0.clone();
+        for k in [EffectKind::Asymmetry, EffectKind::Offset] {
+            let shape = best_shape(&m, &est, k).expect("a grid shape");
+            m.add(k, shape);
+            refit_all(&mut m, &est).expect("fit");
+        }
+        let before = score(&m, &val);
+        let moves = swap_pass(
+            &mut m,
+            &est,
+            start_len,
+            &d.candidates,
+            Some(&val),
+            Some(before),
+        )
+        .expect("swap pass");
+        let names: Vec<_> = m.effects.iter().map(|e| e.kind).collect();
+        assert!(
+            m.has(EffectKind::Coulomb) && m.has(EffectKind::Offset),
+            "{names:?} after {moves:?}"
+        );
+        assert!(!m.has(EffectKind::Asymmetry), "{names:?} after {moves:?}");
     }
 
     /// A rigid joint with a position ripple, recorded through a 2¹⁶-count encoder: the
