@@ -13,7 +13,7 @@
 use std::f64::consts::TAU;
 
 use super::laws::PeriodicTorque;
-use super::signal::{log_space, positive_or};
+use super::signal::{log_space, periodogram_peaks, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
 use super::{EffectKind, FitTraits, ShapeSearch, SmoothShape};
 
@@ -102,96 +102,33 @@ pub fn refine_grid(traj: &Trajectory, best: &Shape) -> Vec<Shape> {
         .collect()
 }
 
-/// Wavenumbers a [`screen`] looks at, at most: a record whose travel spans 1000 periods of
-/// the shortest one would need about 4000 at the screen's steps; beyond this they widen.
-const SCREEN_MAX: usize = 2048;
-
 /// Peaks of the screen handed on to the exact test.
 const SCREEN_PEAKS: usize = 4;
 
 /// The periods where `residual` correlates most with the fingerprint, from a dense screen of
-/// wavenumbers, and how many the screen looked at (the search's multiplicity).
+/// wavenumbers (`signal::periodogram_peaks` over the position), and how many the screen
+/// looked at (the search's multiplicity).
 ///
 /// A ripple's correlation with the residual lives in a lobe 2π/span wide in wavenumber
 /// (its phase drifts a whole turn over the travel at the lobe's edge): on a record that
 /// travels many periods that lobe is a few per cent of the period, far narrower than the
-/// log grid's step, which then steps over it. The screen walks the wavenumber in quarter
-/// lobes (or 1 % of it where that is finer) — |Σ e·exp(i·k·q)|², which is the fingerprint's correlation with a residual that is
-/// already orthogonal to the model — by a rotation per sample, so it costs a complex
-/// multiply per sample and wavenumber rather than a sine per sample and a regression.
+/// log grid's step, which then steps over it.
 pub fn screen(traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
     let n = traj.len().min(residual.len());
-    let q = &traj.position[..n];
     let periods = periods(traj);
     let (Some(&pmin), Some(&pmax)) = (periods.first(), periods.last()) else {
         return (Vec::new(), 0);
     };
-    let (lo, hi) = q
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| (l.min(x), h.max(x)));
-    let span = hi - lo;
-    if !(span > 0.0 && pmin > 0.0 && pmax > pmin) {
-        return (Vec::new(), 0);
-    }
-    let (k0, k1) = (TAU / pmax, TAU / pmin);
-    // Octaves of wavenumber, each walked in steps of a quarter lobe or 1 % of its wavenumber,
-    // whichever is finer (a period that the travel crosses a few times has a lobe tens of per
-    // cent wide); all steps widen alike when that would exceed SCREEN_MAX.
-    let mut bands: Vec<(f64, f64)> = Vec::new();
-    let mut k = k0;
-    while k < k1 {
-        let top = (2.0 * k).min(k1);
-        bands.push((k, top));
-        k = top;
-    }
-    let step = |lo: f64| (TAU / span / 4.0).min(0.01 * lo);
-    let need: f64 = bands.iter().map(|&(lo, hi)| (hi - lo) / step(lo)).sum();
-    let widen = (need / SCREEN_MAX as f64).max(1.0);
-    // Positions from the travel's middle keep the rotations' phases small.
-    let mid = 0.5 * (lo + hi);
-    let e = &residual[..n];
-    let mut power: Vec<(f64, f64)> = Vec::new();
-    for &(lo, hi) in &bands {
-        let dk = step(lo) * widen;
-        let count = ((hi - lo) / dk).ceil().max(1.0) as usize;
-        let rotor = |k: f64| -> (Vec<f64>, Vec<f64>) {
-            q.iter()
-                .map(|&x| {
-                    let (s, c) = (k * (x - mid)).sin_cos();
-                    (c, s)
-                })
-                .unzip()
-        };
-        let (mut re, mut im) = rotor(lo);
-        let (wr, wi) = rotor(dk);
-        for j in 0..count {
-            let (mut sr, mut si) = (0.0, 0.0);
-            for i in 0..n {
-                sr += e[i] * re[i];
-                si += e[i] * im[i];
-                let r = re[i] * wr[i] - im[i] * wi[i];
-                im[i] = re[i] * wi[i] + im[i] * wr[i];
-                re[i] = r;
-            }
-            power.push((lo + dk * j as f64, sr * sr + si * si));
-        }
-    }
-    let count = power.len();
-    // Local maxima, strongest first.
-    let at = |j: usize| power.get(j).map_or(0.0, |&(_, p)| p);
-    let mut peaks: Vec<usize> = (0..count)
-        .filter(|&j| {
-            let left = j.checked_sub(1).map_or(0.0, at);
-            at(j) > 0.0 && at(j) >= left && at(j) >= at(j + 1)
-        })
-        .collect();
-    peaks.sort_by(|&a, &b| at(b).total_cmp(&at(a)));
-    let shapes = peaks
+    let (found, count) = periodogram_peaks(
+        &traj.position[..n],
+        &residual[..n],
+        (pmin, pmax),
+        SCREEN_PEAKS,
+    );
+    let shapes = found
         .into_iter()
-        .take(SCREEN_PEAKS)
-        .filter_map(|j| power.get(j))
-        .map(|&(k, _)| Shape {
-            ripple_period: TAU / k,
+        .map(|p| Shape {
+            ripple_period: p,
             ..Shape::default()
         })
         .collect();

@@ -225,6 +225,97 @@ pub fn free_response2(n: usize, f0: f64, zeta: f64, fs: f64) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Wavenumbers a [`periodogram_peaks`] looks at, at most: a record whose `x` spans 1000
+/// periods of the shortest one would need about 4000 at its steps; beyond this they widen.
+const PERIODOGRAM_MAX: usize = 2048;
+
+/// The periods in `x` (between `pmin` and `pmax`) at which `e` correlates most with
+/// `exp(i·2π·x/p)`, strongest first (at most `peaks`), and how many periods were looked at.
+/// The screen of a torque periodic in a signal `x` (a ripple in the position, a quantiser's
+/// sawtooth in the command): its correlation with a residual lives in a lobe 2π/span(x) wide
+/// in wavenumber, far narrower than a log grid's step once x spans many periods.
+///
+/// The wavenumber is walked in octaves, each in steps of a quarter lobe or 1 % of it,
+/// whichever is finer; all steps widen alike when that would exceed [`PERIODOGRAM_MAX`].
+/// |Σ e·exp(i·k·x)|² is the fingerprint's correlation with a residual that is already
+/// orthogonal to the model; it is advanced by a rotation per sample, so it costs a complex
+/// multiply per sample and wavenumber rather than a sine per sample and a regression.
+pub fn periodogram_peaks(
+    x: &[f64],
+    e: &[f64],
+    (pmin, pmax): (f64, f64),
+    peaks: usize,
+) -> (Vec<f64>, usize) {
+    use std::f64::consts::TAU;
+    let n = x.len().min(e.len());
+    let (x, e) = (&x[..n], &e[..n]);
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let span = hi - lo;
+    if !(span > 0.0 && pmin > 0.0 && pmax > pmin) {
+        return (Vec::new(), 0);
+    }
+    let (k0, k1) = (TAU / pmax, TAU / pmin);
+    let mut bands: Vec<(f64, f64)> = Vec::new();
+    let mut k = k0;
+    while k < k1 {
+        let top = (2.0 * k).min(k1);
+        bands.push((k, top));
+        k = top;
+    }
+    let step = |lo: f64| (TAU / span / 4.0).min(0.01 * lo);
+    let need: f64 = bands.iter().map(|&(lo, hi)| (hi - lo) / step(lo)).sum();
+    let widen = (need / PERIODOGRAM_MAX as f64).max(1.0);
+    // Values from the span's middle keep the rotations' phases small.
+    let mid = 0.5 * (lo + hi);
+    let mut power: Vec<(f64, f64)> = Vec::new();
+    for &(lo, hi) in &bands {
+        let dk = step(lo) * widen;
+        let count = ((hi - lo) / dk).ceil().max(1.0) as usize;
+        let rotor = |k: f64| -> (Vec<f64>, Vec<f64>) {
+            x.iter()
+                .map(|&v| {
+                    let (s, c) = (k * (v - mid)).sin_cos();
+                    (c, s)
+                })
+                .unzip()
+        };
+        let (mut re, mut im) = rotor(lo);
+        let (wr, wi) = rotor(dk);
+        for j in 0..count {
+            let (mut sr, mut si) = (0.0, 0.0);
+            for i in 0..n {
+                sr += e[i] * re[i];
+                si += e[i] * im[i];
+                let r = re[i] * wr[i] - im[i] * wi[i];
+                im[i] = re[i] * wi[i] + im[i] * wr[i];
+                re[i] = r;
+            }
+            power.push((lo + dk * j as f64, sr * sr + si * si));
+        }
+    }
+    let count = power.len();
+    // Local maxima, strongest first.
+    let at = |j: usize| power.get(j).map_or(0.0, |&(_, p)| p);
+    let mut found: Vec<usize> = (0..count)
+        .filter(|&j| {
+            let left = j.checked_sub(1).map_or(0.0, at);
+            at(j) > 0.0 && at(j) >= left && at(j) >= at(j + 1)
+        })
+        .collect();
+    found.sort_by(|&a, &b| at(b).total_cmp(&at(a)));
+    let periods = found
+        .into_iter()
+        .take(peaks)
+        .filter_map(|j| power.get(j))
+        .map(|&(k, _)| TAU / k)
+        .collect();
+    (periods, count)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -179,17 +179,30 @@ fn golden(
     line_search(model, p, e, &[x, keep], set)
 }
 
-/// The periods the effect's screen (`sim_plant::effects::screen`: the position periodogram
-/// of a residual, in steps the travel resolves) picks out of the residual of `model` without
-/// effect `e`.
-fn screened_periods(model: &Model, p: &On, e: usize, acc: SmoothShape) -> Vec<f64> {
+/// The shapes `screen` (a periodogram of a residual, see `sim_plant::effects::screen`)
+/// picks out of the residual of `model` without effect `e`.
+fn screened(
+    model: &Model,
+    p: &On,
+    e: usize,
+    screen: impl Fn(&sim_plant::effects::Trajectory, &[f64]) -> (Vec<Shape>, usize),
+) -> Vec<Shape> {
     let mut m = model.clone();
-    let kind = m.effects.remove(e).kind;
+    m.effects.remove(e);
     let Ok(fit) = p.refit(&mut m) else {
         return Vec::new();
     };
-    let (shapes, _) = sim_plant::effects::screen(kind, &p.trajectory(), &fit.residual);
-    shapes.iter().map(|s| (acc.get)(s)).collect()
+    screen(&p.trajectory(), &fit.residual).0
+}
+
+/// The periods the effect's own screen (the position periodogram of a residual, in steps the
+/// travel resolves) picks out of the residual of `model` without effect `e`.
+fn screened_periods(model: &Model, p: &On, e: usize, acc: SmoothShape) -> Vec<f64> {
+    let kind = model.effects[e].kind;
+    screened(model, p, e, |t, r| sim_plant::effects::screen(kind, t, r))
+        .iter()
+        .map(|s| (acc.get)(s))
+        .collect()
 }
 
 fn set_delay(m: &mut Model, e: usize, tau: f64) {
@@ -667,9 +680,10 @@ fn set_quantum(m: &mut Model, e: usize, d: f64) {
 
 /// Quantization: the step Δ. The fit of the sawtooth `u − Q_Δ(u)` is very multimodal in Δ: at
 /// a relative error ε the sawtooth slips by ε·K steps where the command spans K = max|u|/Δ
-/// steps, so it decorrelates once ε·K ≈ ½. A dense scan ±5 % around the diagnosis's step at a
-/// relative spacing of 0.15/K (0.01 %–0.5 %), then golden section between the neighbours of the
-/// best.
+/// steps, so it decorrelates once ε·K ≈ ½. A dense scan ±5 % around the diagnosis's step, and
+/// around each step the effect's screen (`quantization::screen`) picks out of the residual
+/// without it, at a relative spacing of 0.15/K (0.01 %–0.5 %); then golden section between
+/// the neighbours of the best.
 fn search_quantum(model: &mut Model, p: &On, e: usize) {
     let d0 = model.effects[e].shape.quantum;
     if d0 <= 0.0 {
@@ -678,11 +692,23 @@ fn search_quantum(model: &mut Model, p: &On, e: usize) {
     let traj = p.trajectory();
     let (u, w) = traj.recorded_input();
     let range = u[w].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let k = (range / d0).max(1.0);
-    let step = (0.15 / k).clamp(1e-4, 5e-3);
-    let half = (0.05f64.ln_1p() / step.ln_1p()).ceil() as i32;
-    let xs: Vec<f64> = (-half..=half).map(|i| d0 * (1.0 + step).powi(i)).collect();
+    let spacing = |d: f64| (0.15 / (range / d).max(1.0)).clamp(1e-4, 5e-3);
+    // Around the diagnosis's step, and around each step the effect's screen picks out of the
+    // residual without it (the grid's 6 % can pass over a peak that is a few per cent wide).
+    let mut centres = vec![d0];
+    for s in screened(model, p, e, sim_plant::effects::quantization::screen) {
+        if centres.iter().all(|c| (s.quantum / c).ln().abs() > 0.05) {
+            centres.push(s.quantum);
+        }
+    }
+    let mut xs = Vec::new();
+    for &c in &centres {
+        let step = spacing(c);
+        let half = (0.05f64.ln_1p() / step.ln_1p()).ceil() as i32;
+        xs.extend((-half..=half).map(|i| c * (1.0 + step).powi(i)));
+    }
     let (d1, _) = line_search(model, p, e, &xs, &set_quantum);
+    let step = spacing(d1);
     golden(
         model,
         p,
