@@ -7,7 +7,8 @@
 //! 1. **Shape search.** Effects with shape parameters (Stribeck velocity, ripple period,
 //!    backlash width, compliance mode, quantiser step, …) are scanned over `shape_grid` (a
 //!    ripple's period also over the peaks of a dense screen of the residual against position,
-//!    whose wavenumbers count in the grid), and sharp ones again over a finer `refine_grid`
+//!    a quantiser's step over those of a screen against the command, whose wavenumbers count
+//!    in the grid), and sharp ones again over a finer `refine_grid`
 //!    around the best (`shape_search`); for each shape the error-reduction
 //!    ratio ERR = ΔRSS/RSS of adding `Z` to the current regressors `X` is computed in closed
 //!    form from `ZᵀZ`, `ZᵀX`, `Zᵀe` (a partial-regression update, no refit), and the best

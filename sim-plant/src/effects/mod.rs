@@ -596,10 +596,11 @@ pub fn refine_grid(kind: EffectKind, traj: &Trajectory, best: &Shape) -> Vec<Sha
 /// Shapes a dense screen of the residual picks out for the exact test, beside
 /// [`shape_grid`]'s, and how many the screen looked at: for effects whose fingerprint is
 /// too sharp in its shape for any fixed grid to land on (a ripple's period over a long
-/// travel); none for the others.
+/// travel, a quantiser's step across a wide command); none for the others.
 pub fn screen(kind: EffectKind, traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
     match kind {
         EffectKind::Ripple => ripple::screen(traj, residual),
+        EffectKind::Quantization => quantization::screen(traj, residual),
         _ => (Vec::new(), 0),
     }
 }

@@ -2,8 +2,9 @@
 //! close candidates by BIC per parameter (with a validation record, by the validation error
 //! each removes per parameter), then a delay probe and a swap pass over what it added. With a
 //! validation record every effect must earn its place there: a step must lower the
-//! validation error (when no significant candidate does, `--auto` stops), and the swap pass
-//! drops an effect whose removal the validation record does not pay for.
+//! validation error (when no significant candidate does, `--auto` stops), and the swap pass,
+//! which closes every run that stops for want of a step, drops an effect whose removal the
+//! validation record does not pay for.
 
 use serde::Serialize;
 use sim_plant::effects::{EffectKind, Shape};
@@ -124,41 +125,20 @@ pub fn auto_observed(
                     continue;
                 }
             }
-            let val_before = steps.list.last().and_then(|s| s.validation);
-            let moves = swap_pass(model, p, start_len, &seen, validation, val_before)?;
-            if moves.is_empty() {
-                return Ok(AutoRun {
-                    steps: steps.list,
-                    last: d,
-                    stop: "nothing significant is left".into(),
-                });
-            }
-            let sc = score(model, p);
-            let val = validation.map(|v| score(model, v));
-            for (added, replaced) in moves {
-                let verdict = match &added {
-                    Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
-                    None => format!("remove {replaced} (it no longer earns its place)"),
-                };
-                steps.push(AutoStep {
-                    step: steps.list.len(),
-                    added,
-                    replaced: Some(replaced),
-                    score: sc,
-                    validation: val,
-                    chosen_over: None,
-                    p_value: None,
-                    verdict,
-                });
-            }
-            let last = diagnose::diagnose(model, p, opts);
-            return Ok(AutoRun {
-                steps: steps.list,
-                last,
-                stop: "nothing significant was left before the closing swap pass (a swap \
-                       changes the rest of the fit, so the final diagnosis may differ)"
-                    .into(),
-            });
+            return close(
+                Closing {
+                    model,
+                    p,
+                    opts,
+                    start_len,
+                    seen: &seen,
+                    validation,
+                },
+                steps,
+                d,
+                "nothing significant is left".into(),
+                "nothing significant was left".into(),
+            );
         };
         if steps.list.len() > max_steps {
             return Ok(AutoRun {
@@ -195,11 +175,20 @@ pub fn auto_observed(
                      physical range, or raises BIC once refitted"
                 ),
             };
-            return Ok(AutoRun {
-                steps: steps.list,
-                last: d,
+            return close(
+                Closing {
+                    model,
+                    p,
+                    opts,
+                    start_len,
+                    seen: &seen,
+                    validation,
+                },
+                steps,
+                d,
+                stop.clone(),
                 stop,
-            });
+            );
         };
         *model = fitted;
         steps.push(AutoStep {
@@ -213,6 +202,74 @@ pub fn auto_observed(
             verdict: d.verdict.text.clone(),
         });
     }
+}
+
+/// What the closing swap pass of `--auto` works on.
+struct Closing<'a, 'm> {
+    model: &'m mut Model,
+    p: &'a Prepared,
+    opts: &'a Options,
+    start_len: usize,
+    seen: &'a [diagnose::Candidate],
+    validation: Option<&'a Prepared>,
+}
+
+/// The end of `--auto`, wherever the steps stop for want of a step to take: the closing swap
+/// pass ([`swap_pass`]), its moves reported as steps. `stop` says why when no move is made,
+/// `before` (and that the swaps came after) when one is. Greedy addition can
+/// leave a richer effect where a simpler one does the same, whether the steps ran out
+/// because nothing was significant or because the validation record refused the rest.
+fn close(
+    c: Closing,
+    mut steps: Steps,
+    d: Diagnosis,
+    stop: String,
+    before: String,
+) -> Result<AutoRun, fit::FitError> {
+    let Closing {
+        model,
+        p,
+        opts,
+        start_len,
+        seen,
+        validation,
+    } = c;
+    let val_before = steps.list.last().and_then(|s| s.validation);
+    let moves = swap_pass(model, p, start_len, seen, validation, val_before)?;
+    if moves.is_empty() {
+        return Ok(AutoRun {
+            steps: steps.list,
+            last: d,
+            stop,
+        });
+    }
+    let sc = score(model, p);
+    let val = validation.map(|v| score(model, v));
+    for (added, replaced) in moves {
+        let verdict = match &added {
+            Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
+            None => format!("remove {replaced} (it no longer earns its place)"),
+        };
+        steps.push(AutoStep {
+            step: steps.list.len(),
+            added,
+            replaced: Some(replaced),
+            score: sc,
+            validation: val,
+            chosen_over: None,
+            p_value: None,
+            verdict,
+        });
+    }
+    let last = diagnose::diagnose(model, p, opts);
+    Ok(AutoRun {
+        steps: steps.list,
+        last,
+        stop: format!(
+            "{before}; then the closing swap pass (a swap changes the rest of the fit, so the \
+             final diagnosis may differ)"
+        ),
+    })
 }
 
 /// A step of `--auto` as it would be taken, with its validation score.

@@ -696,7 +696,10 @@ fn search_quantum(model: &mut Model, p: &On, e: usize) {
     // Around the diagnosis's step, and around each step the effect's screen picks out of the
     // residual without it (the grid's 6 % can pass over a peak that is a few per cent wide).
     let mut centres = vec![d0];
-    for s in screened(model, p, e, sim_plant::effects::quantization::screen) {
+    let screen = |t: &sim_plant::effects::Trajectory, r: &[f64]| {
+        sim_plant::effects::screen(EffectKind::Quantization, t, r)
+    };
+    for s in screened(model, p, e, screen) {
         if centres.iter().all(|c| (s.quantum / c).ln().abs() > 0.05) {
             centres.push(s.quantum);
         }
