@@ -194,9 +194,9 @@ fn emps_auto_reaches_the_published_model_first() {
     assert_eq!(added.get(1), Some(&Some("coulomb")));
     assert_eq!(added.get(2), Some(&Some("offset")));
     let rms = |i: usize| run.steps[i].validation.expect("a validation score").rms;
-    for i in 1..run.steps.len() {
-        if added[i].is_some() {
-            assert!(rms(i) < rms(i - 1), "step {i} {:?}", added[i]);
+    for (i, a) in added.iter().enumerate().skip(1) {
+        if a.is_some() {
+            assert!(rms(i) < rms(i - 1), "step {i} {a:?}");
         }
     }
     let last = run.steps.len() - 1;

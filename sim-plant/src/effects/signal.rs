@@ -236,7 +236,7 @@ const PERIODOGRAM_MAX: usize = 2048;
 /// in wavenumber, far narrower than a log grid's step once x spans many periods.
 ///
 /// The wavenumber is walked in octaves, each in steps of a quarter lobe or 1 % of it,
-/// whichever is finer; all steps widen alike when that would exceed [`PERIODOGRAM_MAX`].
+/// whichever is finer; all steps widen alike when that would exceed `PERIODOGRAM_MAX`.
 /// |Σ e·exp(i·k·x)|² is the fingerprint's correlation with a residual that is already
 /// orthogonal to the model; it is advanced by a rotation per sample, so it costs a complex
 /// multiply per sample and wavenumber rather than a sine per sample and a regression.
