@@ -182,14 +182,7 @@ mod tests {
         let a: Vec<f64> = t.iter().map(|t| 7.5 * w * w * (w * t).cos()).collect();
         let zero = vec![0.0; n];
         let traj = Trajectory::unfiltered(dt, &zero, &q, &v, &a);
-        // White noise from a counter hash (SplitMix64), uniform with unit RMS.
-        let noise = |i: u64| {
-            let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            ((z >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
-        };
+        let noise = super::super::signal::unit_noise;
         let grid = periods(&traj);
         assert!(grid.len() > 2 && grid[1] / grid[0] > 1.1, "{grid:?}");
         for period in log_space(0.1, 3.0, 9) {

@@ -316,6 +316,16 @@ pub fn periodogram_peaks(
     (periods, count)
 }
 
+/// White noise for tests: a counter hash (SplitMix64) of `i`, uniform with unit RMS.
+#[cfg(test)]
+pub(crate) fn unit_noise(i: u64) -> f64 {
+    let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    ((z >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -124,20 +124,41 @@ pub fn auto_observed(
                     continue;
                 }
             }
-            return close(
-                Closing {
-                    model,
-                    p,
-                    opts,
-                    start_len,
-                    seen: &seen,
-                    validation,
-                },
-                steps,
-                d,
-                "nothing significant is left".into(),
-                "nothing significant was left".into(),
-            );
+            let val_before = steps.list.last().and_then(|s| s.validation);
+            let moves = swap_pass(model, p, start_len, &seen, validation, val_before)?;
+            if moves.is_empty() {
+                return Ok(AutoRun {
+                    steps: steps.list,
+                    last: d,
+                    stop: "nothing significant is left".into(),
+                });
+            }
+            let sc = score(model, p);
+            let val = validation.map(|v| score(model, v));
+            for (added, replaced) in moves {
+                let verdict = match &added {
+                    Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
+                    None => format!("remove {replaced} (it no longer earns its place)"),
+                };
+                steps.push(AutoStep {
+                    step: steps.list.len(),
+                    added,
+                    replaced: Some(replaced),
+                    score: sc,
+                    validation: val,
+                    chosen_over: None,
+                    p_value: None,
+                    verdict,
+                });
+            }
+            let last = diagnose::diagnose(model, p, opts);
+            return Ok(AutoRun {
+                steps: steps.list,
+                last,
+                stop: "nothing significant was left before the closing swap pass (a swap \
+                       changes the rest of the fit, so the final diagnosis may differ)"
+                    .into(),
+            });
         };
         if steps.list.len() > max_steps {
             return Ok(AutoRun {
@@ -174,8 +195,6 @@ pub fn auto_observed(
                      physical range, or raises BIC once refitted"
                 ),
             };
-            // No closing swap pass here: on EMPS it doubled the run (8.4 s against a 5 s
-            // goal) for the removal of an offset that asymmetry spans.
             return Ok(AutoRun {
                 steps: steps.list,
                 last: d,
@@ -194,73 +213,6 @@ pub fn auto_observed(
             verdict: d.verdict.text.clone(),
         });
     }
-}
-
-/// What the closing swap pass of `--auto` works on.
-struct Closing<'a, 'm> {
-    model: &'m mut Model,
-    p: &'a Prepared,
-    opts: &'a Options,
-    start_len: usize,
-    seen: &'a [diagnose::Candidate],
-    validation: Option<&'a Prepared>,
-}
-
-/// The end of `--auto` once nothing significant is left: the closing swap pass
-/// ([`swap_pass`]), its moves reported as steps. `stop` says why when no move is made,
-/// `before` (and that the swaps came after) when one is. Greedy addition can leave a richer
-/// effect where a simpler one does the same.
-fn close(
-    c: Closing,
-    mut steps: Steps,
-    d: Diagnosis,
-    stop: String,
-    before: String,
-) -> Result<AutoRun, fit::FitError> {
-    let Closing {
-        model,
-        p,
-        opts,
-        start_len,
-        seen,
-        validation,
-    } = c;
-    let val_before = steps.list.last().and_then(|s| s.validation);
-    let moves = swap_pass(model, p, start_len, seen, validation, val_before)?;
-    if moves.is_empty() {
-        return Ok(AutoRun {
-            steps: steps.list,
-            last: d,
-            stop,
-        });
-    }
-    let sc = score(model, p);
-    let val = validation.map(|v| score(model, v));
-    for (added, replaced) in moves {
-        let verdict = match &added {
-            Some(a) => format!("{a} replaces {replaced} (lower BIC)"),
-            None => format!("remove {replaced} (it no longer earns its place)"),
-        };
-        steps.push(AutoStep {
-            step: steps.list.len(),
-            added,
-            replaced: Some(replaced),
-            score: sc,
-            validation: val,
-            chosen_over: None,
-            p_value: None,
-            verdict,
-        });
-    }
-    let last = diagnose::diagnose(model, p, opts);
-    Ok(AutoRun {
-        steps: steps.list,
-        last,
-        stop: format!(
-            "{before}; then the closing swap pass (a swap changes the rest of the fit, so the \
-             final diagnosis may differ)"
-        ),
-    })
 }
 
 /// A step of `--auto` as it would be taken, with its validation score.
