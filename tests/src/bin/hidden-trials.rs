@@ -314,13 +314,16 @@ fn pct(k: usize, n: usize) -> String {
 
 fn describe(o: &Outcome) -> String {
     format!(
-        "seed {} ρ {:.2}{}{} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
+        "seed {} ρ {:.2}{}{}{} {} Hz 2^{} {} — top {:?} verdict {:?} val/floor {:.3?}{}{}",
         o.seed,
         o.rho,
         o.rho_beyond_offset
             .map_or(String::new(), |r| format!(" (beyond an offset {r:.2})")),
         o.rho_beyond_spring
             .map_or(String::new(), |r| format!(" (beyond a spring {r:.2})")),
+        o.base_val
+            .filter(|b| *b > 0.0)
+            .map_or(String::new(), |b| format!(" (base joint on val {b:.2})")),
         o.rate_hz,
         o.encoder_bits,
         o.excitation,
@@ -439,6 +442,18 @@ fn report(results: &[&Done], fails: bool) {
                 println!(
                     "rank 1 a stand-in the truth allows at ρ ≥ 0.5 (offset for gravity, spring for a gap, beyond-simpler ρ < {INDISTINCT}): {}",
                     list.join(", ")
+                );
+            }
+            // Refits judged against a floor the base joint raised (what the start model
+            // leaves of the joint without the effect, on the validation record).
+            let raised = singles
+                .iter()
+                .filter(|o| o.base_val.is_some_and(|b| b >= INDISTINCT))
+                .count();
+            if raised > 0 {
+                println!(
+                    "refit floors raised by the base joint (≥ {INDISTINCT} floors beyond the start model): {raised}/{}",
+                    singles.len()
                 );
             }
             // Where the rank-1 misses at ρ ≥ 0.5 fall, by recording condition.

@@ -137,8 +137,13 @@ pub struct Trial {
     pub floor_val: f64,
     /// Noise floor of the validation record for the model a refit of the single hidden
     /// family is judged as: with the transmission's spring for compliance, on both encoders
-    /// for backlash (fitted on the measured deflection), rigid otherwise.
+    /// for backlash (fitted on the measured deflection), rigid otherwise; and with what the
+    /// start model leaves of the joint without the effect ([`Trial::base_val`]).
     pub floor_val_refit: f64,
+    /// What the start model leaves of the joint without the hidden effect, on the validation
+    /// record, over its floor (0 for spring and gap families and for nulls and pairs): part of
+    /// [`Trial::floor_val_refit`].
+    pub base_val: f64,
     /// Gravity's strength beyond what a constant explains ([`referee::excess_with`] over the
     /// floor; in a pair, of gravity on its own); `None` without gravity.
     pub rho_beyond_offset: Option<f64>,
@@ -231,7 +236,17 @@ pub fn generate_in(
         [Family::Backlash] => referee::NoisePath::TwoEncoders,
         _ => referee::NoisePath::Rigid,
     };
-    let floor_val_refit = referee::floor_on(&val, fc, path);
+    // What the start model cannot explain of the joint without the hidden effect (the `rk4`
+    // truth's stiff transmission on a fast, fine record): no refit of the hidden effect alone
+    // gets below it, so it joins the floor a refit is judged against — the null trials' rule
+    // (below) applied to the refit. A spring or a gap replaces that transmission: none there.
+    let base_excess = match families {
+        [f] if !matches!(f, Family::Compliance | Family::Backlash) => {
+            referee::excess(&rec(&[], Which::Validation)?, fc, coulomb)
+        }
+        _ => 0.0,
+    };
+    let floor_val_refit = referee::floor_on(&val, fc, path).hypot(base_excess);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
     // Gravity whose period is long against the record's travel is an offset to any data:
     // how much of it a constant cannot explain, from the truth (on its own in a pair, as
@@ -277,6 +292,7 @@ pub fn generate_in(
         floor_est,
         floor_val,
         floor_val_refit,
+        base_val: base_excess / floor_val,
         rho_beyond_offset,
         rho_beyond_spring,
     })
@@ -383,6 +399,10 @@ pub struct Outcome {
     /// Backlash trials: the strength of what a linear spring cannot explain ([`Trial`]'s).
     #[serde(default)]
     pub rho_beyond_spring: Option<f64>,
+    /// Single-effect trials: what the start model leaves of the joint without the effect, on
+    /// the validation record, in floors ([`Trial::base_val`]).
+    #[serde(default)]
+    pub base_val: Option<f64>,
 }
 
 /// Below this strength beyond a simpler effect (the lower edge of the weak band), a record
@@ -617,6 +637,7 @@ pub fn run(
         backlash_after_compliance: None,
         rho_beyond_offset: t.rho_beyond_offset,
         rho_beyond_spring: t.rho_beyond_spring,
+        base_val: (families.len() == 1).then_some(t.base_val),
     };
     match catch_unwind(AssertUnwindSafe(|| judge(&t, &mut out))) {
         Ok(Ok(())) => {}
@@ -693,7 +714,44 @@ mod tests {
             backlash_after_compliance: None,
             rho_beyond_offset: beyond_offset,
             rho_beyond_spring: None,
+            base_val: None,
         }
+    }
+
+    /// The floor a refit is judged against holds what the start model leaves of the joint
+    /// without the hidden effect, in quadrature: the `rk4` truth's stiff (350 Hz)
+    /// transmission is part of it on a fast, fine record and next to none of it on a slow,
+    /// coarse one; a spring family replaces that transmission and adds nothing.
+    #[test]
+    fn the_refit_floor_holds_what_the_start_model_leaves_of_the_base_joint() {
+        let cond = |dt: f64, bits: f64| Conditions {
+            dt,
+            duration: 6.0,
+            counts_per_rev: 2f64.powf(bits),
+            logging: Logging::Zoh,
+            excitation: Excitation::MultisinePrbs,
+            noise: 1.0,
+        };
+        let trial = |families: &[Family], c: Conditions| {
+            (1..)
+                .find_map(|s| generate_in(&rk4::Rk4, s, families, 2.0, c).ok())
+                .expect("a stable draw")
+        };
+        let fast = trial(&[Family::Offset], cond(2e-4, 20.0));
+        let slow = trial(&[Family::Offset], cond(4e-3, 12.0));
+        assert!(
+            fast.base_val > 0.3 && slow.base_val < 0.05,
+            "base beyond the start model: fast {:.3}, slow {:.3} floors",
+            fast.base_val,
+            slow.base_val
+        );
+        for t in [&fast, &slow] {
+            let rigid = referee::floor_on(&t.val, t.cutoff, referee::NoisePath::Rigid);
+            let with_base = rigid.hypot(t.base_val * t.floor_val);
+            assert!((t.floor_val_refit / with_base - 1.0).abs() < 1e-12);
+        }
+        let spring = trial(&[Family::Compliance], cond(2e-4, 20.0));
+        assert_eq!(spring.base_val, 0.0);
     }
 
     /// In a pair, an offset stands for gravity only where the truth says a constant explains
