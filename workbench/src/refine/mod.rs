@@ -536,6 +536,41 @@ mod tests {
         );
     }
 
+    /// A Gaussian Stribeck curve (δ = 2) whose vs lies midway between two points of the
+    /// shape grid (×1.9 apart): the refit finds the curve's shape, its vs and its excess
+    /// between the grid's points.
+    #[test]
+    fn the_stribeck_refit_finds_the_curve_shape_between_grid_points() {
+        let probe = synthetic(|_, _| 0.0, FINE);
+        let grid: Vec<f64> =
+            sim_plant::effects::shape_grid(EffectKind::Stribeck, &probe.trajectory())
+                .iter()
+                .filter(|s| s.stribeck_exponent == 2.0)
+                .map(|s| s.stribeck_velocity)
+                .collect();
+        let vs = (grid[4] * grid[5]).sqrt();
+        let (coulomb, excess) = (0.01, 0.02);
+        let p = synthetic(
+            |_, v| {
+                let x = v / vs;
+                v.signum() * (coulomb + excess * (-x * x).exp())
+            },
+            FINE,
+        );
+        let mut m = Model::baseline();
+        m.add(EffectKind::Coulomb, Shape::default());
+        m.add(EffectKind::Stribeck, Shape::default());
+        refit_all(&mut m, &p).expect("fit");
+        let e = &m.effects[2];
+        assert_eq!(e.kind, EffectKind::Stribeck);
+        let (d, v) = (e.shape.stribeck_exponent, e.shape.stribeck_velocity);
+        let got = e.params[0].value;
+        assert!(
+            d == 2.0 && (v / vs - 1.0).abs() < 0.1 && (got / excess - 1.0).abs() < 0.1,
+            "δ {d}, vs {v} (true {vs}), excess {got} (true {excess})"
+        );
+    }
+
     /// The diagnosis of `p` against the baseline, with `effect` forced to be the verdict (as
     /// if its grid-shape test had come out significant).
     fn forced_verdict(p: &Prepared, effect: EffectKind) -> Diagnosis {

@@ -404,9 +404,17 @@ fn search_compliance(model: &mut Model, p: &On, e: usize) {
     // (f₂, ζ₂) and its amplitude is −J2, linear. The same joint grid and golden sections, then
     // the split J1 = J − J2 maps it back to the coupled mode (f = f₂·√(1 + J2/J1)) and the
     // amplitude −J2/J1; the load's viscous friction then enters as (J2·s + b)². Kept only if
-    // it fits better than the command form.
+    // its plain RSS, noise included, is the lower: the two forms pass different noise (the
+    // command form the encoder's through the whole inertia and the command's own amplified
+    // J/J1-fold above the mode, the motion form the encoder's through J1 + J2·G), and that
+    // difference, which `ls_rss` takes out to compare shapes of one form, decides which
+    // predicts a new record better.
     let command_form = model.clone();
-    let r0 = ls_rss(&mut model.clone(), p);
+    let plain = |m: &Model| match p.refit(&mut m.clone()) {
+        Ok(f) if m.physical_split().is_ok() => f.rss,
+        _ => f64::INFINITY,
+    };
+    let r0 = plain(model);
     let mut m = model.clone();
     sim_plant::effects::compliance::set_unit_motion_form(&mut m.effects[e].shape);
     let mut freqs2: Vec<f64> = freqs.iter().map(|f| f / 2.0).collect();
@@ -444,7 +452,7 @@ fn search_compliance(model: &mut Model, p: &On, e: usize) {
         sh.compliance_load_damping = b.max(0.0);
         ls_rss(&mut m, p);
         polish(&mut m);
-        if ls_rss(&mut m.clone(), p) < r0 {
+        if plain(&m) < r0 {
             *model = m;
             return;
         }
@@ -542,8 +550,9 @@ fn set_stick(m: &mut Model, e: usize, vh: f64) {
 /// * the stick window vh on a log grid of 1e-4…1e-2 of the top speed, then golden section
 ///   (the motion terms are not gated, so a window wider than the rest's velocity noise costs
 ///   at every fast reversal and the RSS has an interior minimum);
-/// * vs × δ on the diagnosis's grid again: the transition seen by the slip column changes
-///   once the stick phases are no longer its to explain. LM then refines vs.
+/// * vs × δ on the diagnosis's grid again, each δ at its own best vs: the transition seen
+///   by the slip column changes once the stick phases are no longer its to explain. LM then
+///   refines vs.
 fn search_stick(model: &mut Model, p: &On, e: usize, start: StickStart) {
     let vmax = p.velocity.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if vmax.is_nan() || vmax <= 0.0 {
@@ -573,7 +582,30 @@ fn search_stick(model: &mut Model, p: &On, e: usize, start: StickStart) {
         Some(d) => vec![d],
         None => distinct(grid.iter().map(|s| s.stribeck_exponent)),
     };
-    grid_search(model, p, e, &ds, &set_d, &vss, &set_vs);
+    // Each δ at its own best vs (the grid, then golden section across a grid step either
+    // way) before the δ are compared: at the grid's points, ×1.9 apart, the δ whose grid
+    // passes nearer its own vs wins, and the LM that follows only polishes the δ so picked.
+    let step = vss
+        .windows(2)
+        .map(|w| (w[1] / w[0]).ln())
+        .fold(0.0f64, f64::max);
+    let set_lvs = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.stribeck_velocity = x.exp();
+    let mut best: Option<(f64, Model)> = None;
+    for &d in &ds {
+        let mut m = model.clone();
+        set_d(&mut m, e, d);
+        let (v0, mut r) = line_search(&mut m, p, e, &vss, &set_vs);
+        if v0 > 0.0 && step > 0.0 {
+            let l = v0.ln();
+            r = golden(&mut m, p, e, (l - step, l + step), l, 8, &set_lvs).1;
+        }
+        if best.as_ref().is_none_or(|b| r < b.0) {
+            best = Some((r, m));
+        }
+    }
+    if let Some((_, m)) = best {
+        *model = m;
+    }
 }
 
 /// Sets the sign shape of effect `e` and of every Coulomb / asymmetry term: dry friction
