@@ -246,6 +246,10 @@ pub fn generate_in(
         }
         _ => 0.0,
     };
+    if !base_excess.is_finite() {
+        // The truth could not be measured: the draw does not count (as a ρ that is not finite).
+        return Err(Skip::Strength(base_excess));
+    }
     let floor_val_refit = referee::floor_on(&val, fc, path).hypot(base_excess);
     let rho = referee::excess(&est, fc, coulomb) / floor_est;
     // Gravity whose period is long against the record's travel is an offset to any data:
