@@ -1,7 +1,8 @@
 //! The shape searches of a refit: what least squares cannot place (a delay's τ on the
 //! delayed input, Coulomb's sign lead, the ripple period, the compliance mode, the quantiser
 //! step, the backlash width and the load's time constant, Stribeck's stick window), each a
-//! line, grid or golden-section search on [`ls_rss`].
+//! line, grid or golden-section search on [`ls_rss`] (the choice between compliance's two
+//! column forms on the plain RSS, see `search_compliance`).
 
 use sim_plant::effects::{backlash, EffectKind, Shape, ShapeSearch, SmoothShape};
 
@@ -410,9 +411,12 @@ fn search_compliance(model: &mut Model, p: &On, e: usize) {
     // difference, which `ls_rss` takes out to compare shapes of one form, decides which
     // predicts a new record better.
     let command_form = model.clone();
-    let plain = |m: &Model| match p.refit(&mut m.clone()) {
-        Ok(f) if m.physical_split().is_ok() => f.rss,
-        _ => f64::INFINITY,
+    let plain = |m: &Model| {
+        let mut c = m.clone();
+        match p.refit(&mut c) {
+            Ok(f) if c.physical_split().is_ok() => f.rss,
+            _ => f64::INFINITY,
+        }
     };
     let r0 = plain(model);
     let mut m = model.clone();
@@ -583,7 +587,7 @@ fn search_stick(model: &mut Model, p: &On, e: usize, start: StickStart) {
         None => distinct(grid.iter().map(|s| s.stribeck_exponent)),
     };
     // Each δ at its own best vs (the grid, then golden section across a grid step either
-    // way) before the δ are compared: at the grid's points, ×1.9 apart, the δ whose grid
+    // way) before the δ are compared: at the grid's points, a grid step apart, the δ whose grid
     // passes nearer its own vs wins, and the LM that follows only polishes the δ so picked.
     let step = vss
         .windows(2)
