@@ -404,21 +404,25 @@ fn report(results: &[&Done], fails: bool) {
                 let r1 = hi.iter().filter(|o| o.rank1_ok()).count();
                 let r2 = mid.iter().filter(|o| o.rank1_ok()).count();
                 let vd = hi.iter().filter(|o| o.verdict_ok()).count();
-                let fit = of.iter().filter(|o| o.refit_ok(refit_bar(f))).count();
+                let judged: Vec<_> = of
+                    .iter()
+                    .filter(|o| o.refit_judgeable(refit_bar(f)))
+                    .collect();
+                let fit = judged.iter().filter(|o| o.refit_ok(refit_bar(f))).count();
                 (a1, n1, a2, n2, rf, nf) = (
                     a1 + r1,
                     n1 + hi.len(),
                     a2 + r2,
                     n2 + mid.len(),
                     rf + fit,
-                    nf + of.len(),
+                    nf + judged.len(),
                 );
                 println!(
                     "{f:>13}  {:>18} {:>18} {:>18} {:>18}",
                     pct(r1, hi.len()),
                     pct(r2, mid.len()),
                     pct(vd, hi.len()),
-                    pct(fit, of.len())
+                    pct(fit, judged.len())
                 );
             }
             println!(
@@ -450,6 +454,16 @@ fn report(results: &[&Done], fails: bool) {
                 .iter()
                 .filter(|o| o.base_val.is_some_and(|b| b >= INDISTINCT))
                 .count();
+            let unjudged = singles
+                .iter()
+                .filter(|o| !o.refit_judgeable(refit_bar(&o.families[0])))
+                .count();
+            if unjudged > 0 {
+                println!(
+                    "refits not counted (the start model alone would pass the bar, by the truth): {unjudged}/{}",
+                    singles.len()
+                );
+            }
             if raised > 0 {
                 println!(
                     "refit floors raised by the base joint (≥ {INDISTINCT} floors beyond the start model): {raised}/{}",
@@ -483,7 +497,7 @@ fn report(results: &[&Done], fails: bool) {
                 for o in &singles {
                     let f = &o.families[0];
                     let miss_rank = o.rho >= 0.5 && !o.rank1_ok();
-                    let miss_fit = !o.refit_ok(refit_bar(f));
+                    let miss_fit = o.refit_judgeable(refit_bar(f)) && !o.refit_ok(refit_bar(f));
                     if miss_rank || miss_fit {
                         eprintln!("[{truth}/{logging}] {f}: {}", describe(o));
                     }

@@ -467,6 +467,18 @@ impl Outcome {
     pub fn refit_ok(&self, bar: f64) -> bool {
         self.error.is_none() && self.val_ratio.is_some_and(|r| r <= bar)
     }
+    /// The refit bar can tell a refit from none, by the truth: the start model alone, which
+    /// leaves the effect (ρ) and the base joint ([`Outcome::base_val`]) on top of the noise,
+    /// would score above `bar`. Where it would not, a refit that explains nothing passes, and
+    /// the trial says nothing about the refit, as a null whose truth holds more than the
+    /// start model says nothing about quiet (`rho` is the estimation record's; the two
+    /// records share their draw). A workbench error always counts, as a failure.
+    pub fn refit_judgeable(&self, bar: f64) -> bool {
+        let base = self.base_val.unwrap_or(0.0);
+        let floor = 1.0 + base * base;
+        self.families.len() == 1
+            && (self.error.is_some() || floor + self.rho * self.rho > bar * bar * floor)
+    }
     /// `--auto` added exactly the two hidden effects (an extra effect is an error); an
     /// offset stands for gravity that a constant explains to within [`INDISTINCT`] of
     /// the floor, as in a single-effect trial.
@@ -756,6 +768,29 @@ mod tests {
         }
         let spring = trial(&[Family::Compliance], cond(2e-4, 20.0));
         assert_eq!(spring.base_val, 0.0);
+    }
+
+    /// A refit counts only where a refit that adds nothing would fail its bar: the effect
+    /// (ρ) and the base joint leave √(1 + b² + ρ²) floors, judged against √(1 + b²).
+    #[test]
+    fn a_refit_counts_only_where_adding_nothing_would_fail() {
+        let single = |rho: f64, base: f64| {
+            let mut o = outcome(&["offset"], &[], None);
+            o.rho = rho;
+            o.base_val = Some(base);
+            o
+        };
+        // rk4 Stribeck 1300068's figures: nothing added would score 1.092.
+        assert!(!single(1.1, 2.3).refit_judgeable(1.1));
+        assert!(single(1.1, 2.3).refit_judgeable(1.05));
+        assert!(single(0.5, 0.0).refit_judgeable(1.1)); // 1.118
+        assert!(!single(0.4, 0.0).refit_judgeable(1.1)); // 1.077
+        assert!(!single(0.7, 0.0).refit_judgeable(1.25)); // 1.221
+        assert!(single(0.8, 0.0).refit_judgeable(1.25)); // 1.281
+        let mut failed = single(0.1, 0.0);
+        failed.error = Some("panicked".into());
+        assert!(failed.refit_judgeable(1.1));
+        assert!(!outcome(&["offset", "coulomb"], &[], None).refit_judgeable(1.1));
     }
 
     /// In a pair, an offset stands for gravity only where the truth says a constant explains
