@@ -129,7 +129,8 @@ pub struct Trial {
     pub est: TruthRecord,
     /// Validation record.
     pub val: TruthRecord,
-    /// Measured strength on the estimation record (all effects together).
+    /// Measured strength on the estimation record (all effects together), beyond what the
+    /// start model leaves of the joint without them ([`referee::beyond`]).
     pub rho: f64,
     /// Noise floor of the estimation record.
     pub floor_est: f64,
@@ -164,6 +165,18 @@ fn start_has_coulomb(families: &[Family]) -> bool {
     families.contains(&Family::Stribeck)
 }
 
+/// The truth's joint without `hidden` but with what the start model holds: a Stribeck
+/// truth's Coulomb friction (its Stribeck excess at 0). A dynamic Coulomb law (the `rk4`
+/// truth's LuGre bristles) is not a static sign of the velocity: around a slow reversal
+/// its bristles deflect (presliding), and that is no part of the Stribeck effect.
+fn base_joint(hidden: &[Family]) -> Vec<(Family, f64)> {
+    if hidden.contains(&Family::Stribeck) {
+        vec![(Family::Stribeck, 0.0)]
+    } else {
+        Vec::new()
+    }
+}
+
 /// Generate a trial of `truth` with `families` hidden, each scaled on its own to the target
 /// strength `target_rho` by the referee.
 pub fn generate(
@@ -193,15 +206,30 @@ pub fn generate_in(
     // The cut-off follows the rate the truth actually records at.
     let probe = rec(&[], Which::Estimation)?;
     let fc = cutoff(probe.dt, cond.counts_per_rev);
+    // What the start model cannot explain of the joint without `of` (N·m, on `which`).
+    let base = |of: &[Family], which| -> Result<f64, Skip> {
+        if of
+            .iter()
+            .any(|f| matches!(f, Family::Compliance | Family::Backlash))
+        {
+            Ok(0.0)
+        } else {
+            Ok(referee::excess(&rec(&base_joint(of), which)?, fc, coulomb))
+        }
+    };
     let mut effects = Vec::new();
     for &f in families {
+        let base_est = base(&[f], Which::Estimation)?;
         // Secant steps on the amplitude (ρ is about linear in it); a quantiser's strength is
         // a ragged function of its step: two more.
         let mut a = truth.nominal_amplitude(seed, f, &cond);
         let steps = if f == Family::Quantization { 4 } else { 3 };
         for _ in 0..steps {
             let r = match rec(&[(f, a)], Which::Estimation) {
-                Ok(r) => referee::rho(&r, fc, coulomb),
+                Ok(r) => {
+                    referee::beyond(referee::excess(&r, fc, coulomb), base_est)
+                        / referee::floor(&r, fc)
+                }
                 Err(_) => f64::NAN,
             };
             a *= if !r.is_finite() {
@@ -241,9 +269,7 @@ pub fn generate_in(
     // gets below it, so it joins the floor a refit is judged against — the null trials' rule
     // (below) applied to the refit. A spring or a gap replaces that transmission: none there.
     let base_excess = match families {
-        [f] if !matches!(f, Family::Compliance | Family::Backlash) => {
-            referee::excess(&rec(&[], Which::Validation)?, fc, coulomb)
-        }
+        [_] => base(families, Which::Validation)?,
         _ => 0.0,
     };
     if !base_excess.is_finite() {
@@ -251,20 +277,32 @@ pub fn generate_in(
         return Err(Skip::Strength(base_excess));
     }
     let floor_val_refit = referee::floor_on(&val, fc, path).hypot(base_excess);
-    let rho = referee::excess(&est, fc, coulomb) / floor_est;
+    // A hidden effect's strength is what it adds to what the start model leaves of the base
+    // joint; a null trial's is all the start model leaves.
+    let base_est = if families.is_empty() {
+        0.0
+    } else {
+        base(families, Which::Estimation)?
+    };
+    let rho = referee::beyond(referee::excess(&est, fc, coulomb), base_est) / floor_est;
     // Gravity whose period is long against the record's travel is an offset to any data:
     // how much of it a constant cannot explain, from the truth (on its own in a pair, as
     // each effect is scaled on its own).
     let rho_beyond_offset = match effects.as_slice() {
-        [(Family::Gravity, _)] => {
-            Some(referee::excess_with(&est, fc, coulomb, referee::Also::Offset) / floor_est)
-        }
+        [(Family::Gravity, _)] => Some(
+            referee::beyond(
+                referee::excess_with(&est, fc, coulomb, referee::Also::Offset),
+                base_est,
+            ) / floor_est,
+        ),
         _ => match effects.iter().find(|(f, _)| *f == Family::Gravity) {
             Some(&g) => {
                 let r = rec(&[g], Which::Estimation)?;
                 Some(
-                    referee::excess_with(&r, fc, coulomb, referee::Also::Offset)
-                        / referee::floor(&r, fc),
+                    referee::beyond(
+                        referee::excess_with(&r, fc, coulomb, referee::Also::Offset),
+                        base(&[Family::Gravity], Which::Estimation)?,
+                    ) / referee::floor(&r, fc),
                 )
             }
             None => None,
@@ -768,6 +806,54 @@ mod tests {
         }
         let spring = trial(&[Family::Compliance], cond(2e-4, 20.0));
         assert_eq!(spring.base_val, 0.0);
+    }
+
+    /// A Stribeck trial's base joint keeps the truth's own Coulomb law (its Stribeck excess
+    /// at 0): the `rk4` truth's LuGre bristles deflect (presliding) around a slow reversal, which the
+    /// start model's static sign cannot follow, and that is no part of the Stribeck effect's
+    /// strength. On a slow, coarse PD record (1 kHz, 2¹² counts) it shows on some of the first
+    /// ten draws, while the joint without friction leaves next to nothing.
+    #[test]
+    fn a_stribeck_trial_is_measured_beyond_its_truths_own_coulomb_law() {
+        let c = Conditions {
+            dt: 1e-3,
+            duration: 6.0,
+            counts_per_rev: 4096.0,
+            logging: Logging::Zoh,
+            excitation: Excitation::PdTracking,
+            noise: 1.0,
+        };
+        let truth = rk4::Rk4;
+        let mut presliding = 0;
+        for seed in 1..=10 {
+            let Ok(t) = generate_in(&truth, seed, &[Family::Stribeck], 1.0, c) else {
+                continue;
+            };
+            let record = |effects: &[(Family, f64)], which| {
+                truth.record(seed, effects, &c, which).expect("base joint")
+            };
+            let coulomb_only = [(Family::Stribeck, 0.0)];
+            let base_val =
+                referee::excess(&record(&coulomb_only, Which::Validation), t.cutoff, true);
+            assert!((t.base_val - base_val / t.floor_val).abs() < 1e-9);
+            let base_est =
+                referee::excess(&record(&coulomb_only, Which::Estimation), t.cutoff, true);
+            let effect = referee::excess(&t.est, t.cutoff, true);
+            let rho = (effect.powi(2) - base_est.powi(2)).max(0.0).sqrt() / t.floor_est;
+            assert!(
+                (t.rho - rho).abs() < 1e-9,
+                "seed {seed}: ρ {} against {rho}",
+                t.rho
+            );
+            let frictionless = referee::excess(&record(&[], Which::Validation), t.cutoff, true);
+            assert!(
+                frictionless < 0.05 * t.floor_val,
+                "seed {seed}: the joint without friction leaves {:.3} floors",
+                frictionless / t.floor_val
+            );
+            presliding += usize::from(t.base_val >= INDISTINCT);
+        }
+        assert!(presliding > 0, "no draw shows presliding of half a floor");
     }
 
     /// A refit counts only where a refit that adds nothing would fail its bar: the effect

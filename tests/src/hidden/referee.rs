@@ -15,7 +15,9 @@
 //!   Coulomb friction when the hidden effect is Stribeck) cannot explain of the noise-free
 //!   joint, over the floor. It is fitted here by least squares on the truth's fine grid —
 //!   the held command and the true motor position at every integration sub-step, so no
-//!   sampling or hold convention enters it.
+//!   sampling or hold convention enters it. Of a hidden effect, ρ counts only what it adds
+//!   ([`beyond`]) to what the start model leaves of the truth's joint without it (a stiff
+//!   transmission, a Coulomb law that is not a static sign).
 
 use nalgebra::{DMatrix, DVector};
 use rustfft::{num_complex::Complex64, FftPlanner};
@@ -315,9 +317,15 @@ fn ring_samples(alpha: f64, beta: f64, h: f64) -> Option<usize> {
     (sigma > 0.0 && samples.is_finite()).then(|| samples.ceil() as usize)
 }
 
-/// Strength ρ of `rec`'s hidden effects: [`excess`] over [`floor`].
-pub fn rho(rec: &TruthRecord, cutoff_hz: f64, coulomb: bool) -> f64 {
-    excess(rec, cutoff_hz, coulomb) / floor(rec, cutoff_hz)
+/// What an effect adds to an excess the start model leaves without it (`base`), both as
+/// RMS torques: in quadrature, as independent parts of a residual add (0 where the base is
+/// the larger; NaN if either is).
+pub fn beyond(excess: f64, base: f64) -> f64 {
+    if excess.is_finite() && base.is_finite() {
+        (excess * excess - base * base).max(0.0).sqrt()
+    } else {
+        f64::NAN
+    }
 }
 
 #[cfg(test)]
