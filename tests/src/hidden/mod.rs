@@ -582,9 +582,11 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
     }
     if debug {
         eprintln!(
-            "ρ = {:.2}, floor {:.3e}\n{}",
+            "ρ = {:.2}, floor {:.3e}, amplitudes {:?}, base joint on val {:.2} floors\n{}",
             t.rho,
             t.floor_est,
+            t.effects,
+            t.base_val,
             d.to_text()
         );
     }
