@@ -456,6 +456,34 @@ fn search_compliance(model: &mut Model, p: &On, e: usize) {
         sh.compliance_load_damping = b.max(0.0);
         ls_rss(&mut m, p);
         polish(&mut m);
+        // The column holds the load's own drag, (J2·s + b₂)², and none of the motor's; the
+        // rigid fit gives only their sum b. Where the drag sits is a property of the joint
+        // (a bearing at the motor, a seal or a fluid at the load), so its share is searched.
+        // The share and the mode's damping trade against each other along a narrow valley
+        // (b₂ adds to the damping too): coordinate sections until the share settles.
+        if b > 0.0 {
+            let set_share = |m: &mut Model, e: usize, x: f64| {
+                m.effects[e].shape.compliance_load_damping = b * x.clamp(0.0, 1.0);
+            };
+            let share = |m: &Model| m.effects[e].shape.compliance_load_damping / b;
+            line_search(&mut m, p, e, &SHARES, &set_share);
+            for _ in 0..SHARE_PASSES {
+                let x = share(&m);
+                golden(
+                    &mut m,
+                    p,
+                    e,
+                    ((x - 0.2).max(0.0), (x + 0.2).min(1.0)),
+                    x,
+                    10,
+                    &set_share,
+                );
+                polish(&mut m);
+                if (share(&m) - x).abs() < 0.02 {
+                    break;
+                }
+            }
+        }
         if plain(&m) < r0 {
             *model = m;
             return;
@@ -463,6 +491,12 @@ fn search_compliance(model: &mut Model, p: &On, e: usize) {
     }
     *model = command_form;
 }
+
+/// The load's share of the viscous drag a compliance refit starts its search from.
+const SHARES: [f64; 6] = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0];
+
+/// Most coordinate passes of the load's drag share against the mode's shape.
+const SHARE_PASSES: usize = 5;
 
 fn set_backlash_width(m: &mut Model, e: usize, b: f64) {
     m.effects[e].shape.backlash_width = b;
