@@ -394,7 +394,7 @@ fn report(results: &[&Done], fails: bool) {
             }
             println!(
                 "{:>13}  {:>18} {:>18} {:>18} {:>18}",
-                "family", "rank 1 ρ≥1", "rank 1 0.5≤ρ<1", "verdict ρ≥1", "refit ≤ bar"
+                "family", "rank 1 ρ≥1", "rank 1 0.5≤ρ<1", "verdict ρ≥1", "refit ≤ bar, judged"
             );
             let (mut a1, mut n1, mut a2, mut n2, mut rf, mut nf) = (0, 0, 0, 0, 0, 0);
             for f in &names {

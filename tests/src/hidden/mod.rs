@@ -168,7 +168,8 @@ fn start_has_coulomb(families: &[Family]) -> bool {
 /// The truth's joint without `hidden` but with what the start model holds: a Stribeck
 /// truth's Coulomb friction (its Stribeck excess at 0). A dynamic Coulomb law (the `rk4`
 /// truth's LuGre bristles) is not a static sign of the velocity: around a slow reversal
-/// its bristles deflect (presliding), and that is no part of the Stribeck effect.
+/// its bristles deflect (presliding). That belongs to the Coulomb law, not to the excess
+/// hidden above it; a Stribeck refit that also takes some of it only scores lower.
 fn base_joint(hidden: &[Family]) -> Vec<(Family, f64)> {
     if hidden.contains(&Family::Stribeck) {
         vec![(Family::Stribeck, 0.0)]
@@ -206,20 +207,33 @@ pub fn generate_in(
     // The cut-off follows the rate the truth actually records at.
     let probe = rec(&[], Which::Estimation)?;
     let fc = cutoff(probe.dt, cond.counts_per_rev);
-    // What the start model cannot explain of the joint without `of` (N·m, on `which`).
-    let base = |of: &[Family], which| -> Result<f64, Skip> {
+    // What the start model (with `also`) cannot explain of the joint without `of` (N·m, on
+    // `which`); a truth that cannot be measured makes the draw not count, as a ρ that is not
+    // finite does.
+    let base = |of: &[Family], which: Which, also: referee::Also| -> Result<f64, Skip> {
         if of
             .iter()
             .any(|f| matches!(f, Family::Compliance | Family::Backlash))
         {
-            Ok(0.0)
+            return Ok(0.0);
+        }
+        let joint = base_joint(of);
+        let e = if joint.is_empty() && which == Which::Estimation {
+            referee::excess_with(&probe, fc, coulomb, also)
         } else {
-            Ok(referee::excess(&rec(&base_joint(of), which)?, fc, coulomb))
+            referee::excess_with(&rec(&joint, which)?, fc, coulomb, also)
+        };
+        if e.is_finite() {
+            Ok(e)
+        } else {
+            Err(Skip::Strength(e))
         }
     };
     let mut effects = Vec::new();
+    let mut base_of_each = Vec::new();
     for &f in families {
-        let base_est = base(&[f], Which::Estimation)?;
+        let base_est = base(&[f], Which::Estimation, referee::Also::Nothing)?;
+        base_of_each.push(base_est);
         // Secant steps on the amplitude (ρ is about linear in it); a quantiser's strength is
         // a ragged function of its step: two more.
         let mut a = truth.nominal_amplitude(seed, f, &cond);
@@ -265,34 +279,33 @@ pub fn generate_in(
         _ => referee::NoisePath::Rigid,
     };
     // What the start model cannot explain of the joint without the hidden effect (the `rk4`
-    // truth's stiff transmission on a fast, fine record): no refit of the hidden effect alone
-    // gets below it, so it joins the floor a refit is judged against — the null trials' rule
-    // (below) applied to the refit. A spring or a gap replaces that transmission: none there.
+    // truth's stiff transmission on a fast, fine record; a Coulomb law that is not a static
+    // sign): no refit of the hidden effect alone gets below it, so it joins the floor a refit
+    // is judged against — the null trials' rule (below) applied to the refit. A spring or a
+    // gap replaces the stiff transmission: none there.
     let base_excess = match families {
-        [_] => base(families, Which::Validation)?,
+        [_] => base(families, Which::Validation, referee::Also::Nothing)?,
         _ => 0.0,
     };
-    if !base_excess.is_finite() {
-        // The truth could not be measured: the draw does not count (as a ρ that is not finite).
-        return Err(Skip::Strength(base_excess));
-    }
     let floor_val_refit = referee::floor_on(&val, fc, path).hypot(base_excess);
     // A hidden effect's strength is what it adds to what the start model leaves of the base
     // joint; a null trial's is all the start model leaves.
-    let base_est = if families.is_empty() {
-        0.0
-    } else {
-        base(families, Which::Estimation)?
+    let base_est = match (families, base_of_each.as_slice()) {
+        ([], _) => 0.0,
+        ([_], [b]) => *b,
+        _ => base(families, Which::Estimation, referee::Also::Nothing)?,
     };
     let rho = referee::beyond(referee::excess(&est, fc, coulomb), base_est) / floor_est;
     // Gravity whose period is long against the record's travel is an offset to any data:
-    // how much of it a constant cannot explain, from the truth (on its own in a pair, as
-    // each effect is scaled on its own).
+    // how much of it a constant cannot explain, beyond what a constant cannot explain of the
+    // joint without it, from the truth (on its own in a pair, as each effect is scaled on its
+    // own).
+    let offset_base = || base(&[Family::Gravity], Which::Estimation, referee::Also::Offset);
     let rho_beyond_offset = match effects.as_slice() {
         [(Family::Gravity, _)] => Some(
             referee::beyond(
                 referee::excess_with(&est, fc, coulomb, referee::Also::Offset),
-                base_est,
+                offset_base()?,
             ) / floor_est,
         ),
         _ => match effects.iter().find(|(f, _)| *f == Family::Gravity) {
@@ -301,7 +314,7 @@ pub fn generate_in(
                 Some(
                     referee::beyond(
                         referee::excess_with(&r, fc, coulomb, referee::Also::Offset),
-                        base(&[Family::Gravity], Which::Estimation)?,
+                        offset_base()?,
                     ) / referee::floor(&r, fc),
                 )
             }
@@ -510,12 +523,18 @@ impl Outcome {
     /// would score above `bar`. Where it would not, a refit that explains nothing passes, and
     /// the trial says nothing about the refit, as a null whose truth holds more than the
     /// start model says nothing about quiet (`rho` is the estimation record's; the two
-    /// records share their draw). A workbench error always counts, as a failure.
+    /// records share their draw). A spring or a gap is always judged: its refit's floor is
+    /// not the rigid one ρ is measured in, and its base is none. A workbench error, or a
+    /// strength that is not a number, always counts.
     pub fn refit_judgeable(&self, bar: f64) -> bool {
         let base = self.base_val.unwrap_or(0.0);
         let floor = 1.0 + base * base;
-        self.families.len() == 1
-            && (self.error.is_some() || floor + self.rho * self.rho > bar * bar * floor)
+        let alone_passes = floor + self.rho * self.rho <= bar * bar * floor;
+        let spring = matches!(
+            self.families.first().map(String::as_str),
+            Some("compliance" | "backlash")
+        );
+        self.families.len() == 1 && (self.error.is_some() || spring || !alone_passes)
     }
     /// `--auto` added exactly the two hidden effects (an extra effect is an error); an
     /// offset stands for gravity that a constant explains to within [`INDISTINCT`] of
@@ -859,7 +878,8 @@ mod tests {
     }
 
     /// A refit counts only where a refit that adds nothing would fail its bar: the effect
-    /// (ρ) and the base joint leave √(1 + b² + ρ²) floors, judged against √(1 + b²).
+    /// (ρ) and the base joint leave √(1 + b² + ρ²) floors, judged against √(1 + b²); a spring
+    /// is always judged, and so is a strength that is not a number.
     #[test]
     fn a_refit_counts_only_where_adding_nothing_would_fail() {
         let single = |rho: f64, base: f64| {
@@ -868,7 +888,7 @@ mod tests {
             o.base_val = Some(base);
             o
         };
-        // rk4 Stribeck 1300068's figures: nothing added would score 1.092.
+        // Nothing added would score 1.092.
         assert!(!single(1.1, 2.3).refit_judgeable(1.1));
         assert!(single(1.1, 2.3).refit_judgeable(1.05));
         assert!(single(0.5, 0.0).refit_judgeable(1.1)); // 1.118
@@ -879,6 +899,10 @@ mod tests {
         failed.error = Some("panicked".into());
         assert!(failed.refit_judgeable(1.1));
         assert!(!outcome(&["offset", "coulomb"], &[], None).refit_judgeable(1.1));
+        assert!(single(f64::NAN, 0.0).refit_judgeable(1.1));
+        let mut spring = outcome(&["compliance"], &[], None);
+        spring.rho = 0.3;
+        assert!(spring.refit_judgeable(1.1));
     }
 
     /// In a pair, an offset stands for gravity only where the truth says a constant explains

@@ -319,7 +319,8 @@ fn ring_samples(alpha: f64, beta: f64, h: f64) -> Option<usize> {
 
 /// What an effect adds to an excess the start model leaves without it (`base`), both as
 /// RMS torques: in quadrature, as independent parts of a residual add (0 where the base is
-/// the larger; NaN if either is).
+/// the larger; NaN if either is). Parts at the same instants (a Stribeck excess and
+/// presliding, both at the reversals) are not independent: there it is an estimate.
 pub fn beyond(excess: f64, base: f64) -> f64 {
     if excess.is_finite() && base.is_finite() {
         (excess * excess - base * base).max(0.0).sqrt()
