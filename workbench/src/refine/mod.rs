@@ -370,17 +370,30 @@ mod tests {
             input.push(tau + noise);
             output.push(step * ((x + jitter) / step).round());
         }
+        // Torque and position sampled at the same instants.
+        let columns = Columns::new("torque_Nm", "q_rad")
+            .with_intersample(sim_plant::effects::Intersample::Bl);
+        prepared("synthetic", columns, time, input, output, dt)
+    }
+
+    /// A torque → position recording at `dt`, prepared at a 40 Hz cut-off.
+    fn prepared(
+        path: &str,
+        columns: Columns,
+        time: Vec<f64>,
+        input: Vec<f64>,
+        output: Vec<f64>,
+        dt: f64,
+    ) -> Prepared {
         let rec = Recording {
-            path: "synthetic".into(),
+            path: path.into(),
             time,
             input,
             output,
             load_output: None,
             dt,
             units: ("N·m".into(), "rad".into()),
-            // Torque and position sampled at the same instants.
-            columns: Columns::new("torque_Nm", "q_rad")
-                .with_intersample(sim_plant::effects::Intersample::Bl),
+            columns,
             resampled: None,
             recorded: None,
         };
@@ -631,19 +644,8 @@ mod tests {
                 }
             }
         }
-        let rec = Recording {
-            path: "two-mass".into(),
-            time,
-            input,
-            output,
-            load_output: None,
-            dt,
-            units: ("N·m".into(), "rad".into()),
-            columns: Columns::new("torque_Nm", "q_rad"),
-            resampled: None,
-            recorded: None,
-        };
-        Prepared::new(&rec, Some(40.0))
+        let columns = Columns::new("torque_Nm", "q_rad");
+        prepared("two-mass", columns, time, input, output, dt)
     }
 
     /// The compliance column holds the load's own drag, (J2·s + b₂)², and none of the
