@@ -426,10 +426,16 @@ impl Model {
             if kind == EffectKind::Compliance {
                 let far = if j_far > 0.0 { j_far } else { 0.5 * j };
                 let k = value("stiffness");
+                // The motion form's mode carries the load's drag too (see `to_sim`).
+                let load = if shape.compliance_near_inertia > 0.0 {
+                    shape.compliance_load_damping.max(0.0)
+                } else {
+                    0.0
+                };
                 if k > 0.0 && far < j {
                     let (f, zeta) = sim_plant::effects::compliance::mode_from_spring(
                         k,
-                        value("damping"),
+                        value("damping") + load,
                         j - far,
                         far,
                     );
@@ -489,6 +495,33 @@ impl Model {
             }
         }
         Ok(model)
+    }
+
+    /// Compliance's motion form: the viscous drag in all (N·m·s/rad) and the load's part of
+    /// it, at most the whole (a refit after the share was searched can lower the drag).
+    fn load_drag(&self) -> Option<(f64, f64)> {
+        let spring = self
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Compliance && e.shape.compliance_near_inertia > 0.0)?;
+        let v = self
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Viscous)?
+            .params
+            .first()?
+            .value;
+        (v.is_finite() && v > 0.0).then(|| {
+            let load = spring.shape.compliance_load_damping;
+            (
+                v,
+                if load.is_finite() {
+                    load.clamp(0.0, v)
+                } else {
+                    0.0
+                },
+            )
+        })
     }
 
     /// The simulator model of this fit: the template it was read from (or a default rigid
@@ -599,6 +632,25 @@ impl Model {
                     );
                     c.stiffness.value = k;
                     c.damping.value = damping;
+                    // The motion form's mode damping is the spring's plus the load's drag
+                    // (`compliance::motion_column`), and its fit says how much of the viscous
+                    // drag sits at the load: the rest is the motor's (sim-plant applies the
+                    // viscous effect at the load).
+                    if let Some((v, load)) = self.load_drag().filter(|_| n > 0.0) {
+                        c.damping.value = (damping - load).max(0.0);
+                        let b2 = sim.plant.output_damping.value.clamp(0.0, load);
+                        sim.plant.output_damping.value = b2;
+                        sim.motor.damping.value = (v - load) / (n * n);
+                        if let Some(q) = sim.effects.viscous.as_mut().map(|p| &mut p.damping) {
+                            let d = load - b2 - q.value;
+                            q.value += d;
+                            q.min = q.min.map(|m| m + d);
+                            q.max = q.max.map(|m| m + d);
+                        }
+                        if let Some(r) = record.effects.get_mut(e.kind.name()) {
+                            r.shape.compliance_load_damping = load;
+                        }
+                    }
                 }
                 c.stiffness.free = e.params[0].free;
             }
@@ -870,6 +922,51 @@ mod tests {
         assert!((e.shape.compliance_frequency - 25.0).abs() < 1e-9);
         assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
         assert!((back.inertia.value - 0.03).abs() < 1e-12);
+    }
+
+    /// Compliance's motion form holds the load's share of the viscous drag: through the file
+    /// it is the load's friction, the rest is the motor's, and the mode comes back as fitted.
+    /// A share larger than the drag (the drag refitted lower since) is capped at the whole.
+    #[test]
+    fn the_load_drag_of_the_motion_form_round_trips_through_the_file() {
+        for (load, kept) in [(0.03, 0.03), (0.15, 0.1)] {
+            let mut m = compliant();
+            assert_eq!(m.effects[0].kind, EffectKind::Viscous);
+            m.effects[0].params[0].value = 0.1;
+            let e = &mut m.effects[1];
+            e.params[0].value = -0.5;
+            e.shape.compliance_near_inertia = 0.02;
+            e.shape.compliance_ratio = 0.5;
+            e.shape.compliance_load_damping = load;
+            let text = m.to_sim().to_toml_string();
+            let sim = sim_plant::Model::from_toml_str(&text, "c.toml").unwrap();
+            let at_load = sim.plant.output_damping.value
+                + sim.effects.viscous.as_ref().unwrap().damping.value;
+            assert!((at_load - kept).abs() < 1e-12, "{at_load}\n{text}");
+            assert!(
+                (sim.motor.damping.value - (0.1 - kept)).abs() < 1e-12,
+                "{text}"
+            );
+            let w = std::f64::consts::TAU * 25.0;
+            let c_mode = 2.0 * 0.05 * w * (0.02 * 0.01 / 0.03);
+            let spring = sim.effects.compliance.as_ref().unwrap().damping.value;
+            assert!((spring - (c_mode - kept)).abs() < 1e-12, "{spring}");
+            let back = Model::from_sim(&sim).unwrap();
+            let e = back
+                .effects
+                .iter()
+                .find(|e| e.kind == EffectKind::Compliance)
+                .unwrap();
+            assert!((e.shape.compliance_frequency - 25.0).abs() < 1e-9);
+            assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
+            assert!((e.shape.compliance_load_damping - kept).abs() < 1e-12);
+            let viscous = back
+                .effects
+                .iter()
+                .find(|e| e.kind == EffectKind::Viscous)
+                .unwrap();
+            assert!((viscous.params[0].value - 0.1).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -590,11 +590,20 @@ mod tests {
     /// `b_load` on the load) driven open loop by a torque multisine through the coupled mode
     /// (8 Hz), 12 s at 1 kHz, RK4 at 0.1 ms, 2²⁰ counts with 0.2 count of jitter and 1 mN·m
     /// of torque noise.
-    fn two_mass(b_motor: f64, b_load: f64) -> Prepared {
-        let (j1, j2) = (0.5e-3, 0.75e-3);
+    /// [`two_mass`]'s inertias (kg·m²).
+    const TWO_MASS_INERTIA: (f64, f64) = (0.5e-3, 0.75e-3);
+
+    /// [`two_mass`]'s spring: stiffness and damping of an 8 Hz, ζ = 0.05 coupled mode.
+    fn two_mass_spring() -> (f64, f64) {
+        let (j1, j2) = TWO_MASS_INERTIA;
         let jr = j1 * j2 / (j1 + j2);
         let w = std::f64::consts::TAU * 8.0;
-        let (k, c) = (w * w * jr, 2.0 * 0.05 * w * jr);
+        (w * w * jr, 2.0 * 0.05 * w * jr)
+    }
+
+    fn two_mass(b_motor: f64, b_load: f64) -> Prepared {
+        let (j1, j2) = TWO_MASS_INERTIA;
+        let (k, c) = two_mass_spring();
         let (n, sub, dt) = (12_000, 10, 1e-3);
         let h = dt / sub as f64;
         let step = std::f64::consts::TAU / FINE;
@@ -669,6 +678,31 @@ mod tests {
                 "drag {b_motor} at the motor, {b_load} at the load: the load's found {got} \
                  (motion form: {})",
                 e.shape.compliance_near_inertia > 0.0
+            );
+            // The model file holds the same joint: the motor's drag at the motor, the
+            // load's at the load, and the spring's own damping (not the mode's, which
+            // carries the load's drag too).
+            let sim = m.to_sim();
+            let motor = sim.motor.damping.value;
+            let load = sim.plant.output_damping.value
+                + sim
+                    .effects
+                    .viscous
+                    .as_ref()
+                    .map_or(0.0, |v| v.damping.value);
+            let spring = sim
+                .effects
+                .compliance
+                .as_ref()
+                .map_or(0.0, |c| c.damping.value);
+            let (_, c) = two_mass_spring();
+            let b = b_motor + b_load;
+            assert!(
+                (motor - b_motor).abs() < 0.1 * b
+                    && (load - b_load).abs() < 0.1 * b
+                    && (spring / c - 1.0).abs() < 0.15,
+                "file: motor drag {motor} (truth {b_motor}), load {load} ({b_load}), spring \
+                 damping {spring} ({c})"
             );
         }
     }
