@@ -385,3 +385,67 @@ fn units_reach_the_json_the_model_file_and_the_text() {
         "{err}"
     );
 }
+
+/// `compare` gives its series as data: `residual.csv` in the report directory, with unit
+/// suffixes in the header (a record in mm and N: m, m/s, N), measured − predicted = residual
+/// on every row, and each model's RMS the one the JSON reports (two models: `m1_`, `m2_`).
+#[test]
+fn compare_writes_its_residual_as_data() {
+    let d = dir("resid");
+    record(&d.join("run.csv"), ["time_s", "force_N", "q_mm"], 0);
+    ok(hil()
+        .current_dir(&d)
+        .args([
+            "fit",
+            "run.csv",
+            "--add",
+            "coulomb",
+            "--save-model",
+            "c.toml",
+        ])
+        .output()
+        .unwrap());
+    let j: serde_json::Value = serde_json::from_str(&ok(hil()
+        .current_dir(&d)
+        .args(["compare", "run.csv", "--json", "--report", "rep"])
+        .args(["--model", "c.toml", "--refit", "--model", "c.toml"])
+        .output()
+        .unwrap()))
+    .unwrap();
+    let path = d.join("rep/residual.csv");
+    assert_eq!(j["residual_csv"], "rep/residual.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        header,
+        [
+            "time_s",
+            "position_m",
+            "velocity_m_per_s",
+            "measured_N",
+            "m1_predicted_N",
+            "m1_residual_N",
+            "m2_predicted_N",
+            "m2_residual_N"
+        ]
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert!(rows.len() > 2500, "{} rows", rows.len());
+    for (k, model) in j["models"].as_array().unwrap().iter().enumerate() {
+        let (p, r) = (4 + 2 * k, 5 + 2 * k);
+        let mut ss = 0.0;
+        for row in &rows {
+            assert!((row[3] - row[p] - row[r]).abs() <= 1e-9 * row[3].abs().max(1.0));
+            ss += row[r] * row[r];
+        }
+        let rms = (ss / rows.len() as f64).sqrt();
+        let want = model["metrics"]["rms"].as_f64().unwrap();
+        assert!(
+            (rms / want - 1.0).abs() < 1e-9,
+            "model {k}: {rms} vs {want}"
+        );
+    }
+}

@@ -433,12 +433,20 @@ impl Model {
                     0.0
                 };
                 if k > 0.0 && far < j {
-                    let (f, zeta) = sim_plant::effects::compliance::mode_from_spring(
-                        k,
-                        value("damping") + load,
-                        j - far,
-                        far,
-                    );
+                    let mode = |c: f64| {
+                        sim_plant::effects::compliance::mode_from_spring(k, c, j - far, far)
+                    };
+                    let (mut f, mut zeta) = mode(value("damping") + load);
+                    // A file written before the load's drag was taken out of the spring holds
+                    // the mode's damping in the spring: its fit record's mode says so.
+                    let same = |(f1, z1): (f64, f64)| {
+                        (f1 - shape.compliance_frequency).abs() <= 1e-9 * f1
+                            && (z1 - shape.compliance_damping).abs() <= 1e-9 * z1
+                    };
+                    let older = mode(value("damping"));
+                    if load > 0.0 && record.is_some() && same(older) && !same((f, zeta)) {
+                        (f, zeta) = older;
+                    }
                     shape.compliance_frequency = f;
                     shape.compliance_damping = zeta;
                 }
@@ -966,6 +974,19 @@ mod tests {
                 .find(|e| e.kind == EffectKind::Viscous)
                 .unwrap();
             assert!((viscous.params[0].value - 0.1).abs() < 1e-12);
+            // A file of the older layout (the whole drag at the load, the mode's damping in
+            // the spring) reads back as the same model: its fit record's mode tells it.
+            let mut old = sim.clone();
+            old.effects.compliance.as_mut().unwrap().damping.value = c_mode;
+            old.effects.viscous.as_mut().unwrap().damping.value = 0.1;
+            old.motor.damping.value = 0.0;
+            let back = Model::from_sim(&old).unwrap();
+            let e = back
+                .effects
+                .iter()
+                .find(|e| e.kind == EffectKind::Compliance)
+                .unwrap();
+            assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
         }
     }
 

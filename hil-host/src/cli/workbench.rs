@@ -14,7 +14,7 @@ use jointlab_workbench::metrics;
 use jointlab_workbench::model::Model;
 use jointlab_workbench::refine::{self, AutoStep, FitReport, Score};
 use jointlab_workbench::report::{self, Chart, Series};
-use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared};
+use jointlab_workbench::residual::{self, Mode, PrepareError, Prepared, Residual};
 use jointlab_workbench::schema;
 
 /// Examples for `compare --help`.
@@ -550,12 +550,16 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         },
         a.png,
     )?;
+    let record_units = schema::RecordUnits::of(&cols, mode)?;
+    let series: Vec<&Residual> = models.iter().map(|(_, res, _)| res).collect();
+    let data = write_residual_csv(&a.report, &series, &record_units)?;
     let (model, _, m) = &models[0];
     if a.json {
         let mut j = serde_json::json!({
             "metrics": m,
             "params": refine::param_rows(model),
             "report": html,
+            "residual_csv": data,
             "resampled": resampled,
         });
         if models.len() > 1 {
@@ -571,7 +575,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
                 })
                 .collect();
         }
-        schema::stamp(&mut j, &schema::RecordUnits::of(&cols, mode)?);
+        schema::stamp(&mut j, &record_units);
         println!("{j}");
     } else {
         for ((model, _, m), name) in models.iter().zip(&names) {
@@ -588,8 +592,69 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<()> {
         }
         println!("finding: {finding}");
         println!("report: {}", html.display());
+        println!("residual data: {}", data.display());
     }
     Ok(())
+}
+
+/// The compared series as data (MATLAB's `resid` returns them too): `residual.csv` in the
+/// report's directory, one row per sample of the prepared record — time, the smoothed
+/// position and velocity, the measured signal, and each model's prediction and residual
+/// (`m2_…` for the second model, in the order given). Headers carry unit suffixes, so the file
+/// reads back into the workbench and into any CSV tool.
+fn write_residual_csv(
+    dir: &Path,
+    series: &[&Residual],
+    units: &schema::RecordUnits,
+) -> anyhow::Result<PathBuf> {
+    let Some(first) = series.first() else {
+        bail!("no model to write the residual of");
+    };
+    let suffix = |unit: &str| -> String {
+        if unit.is_empty() {
+            String::new()
+        } else {
+            format!("_{}", unit.replace('·', "").replace('/', "_per_"))
+        }
+    };
+    let sig = suffix(&units.residual);
+    let mut header = vec![
+        "time_s".to_string(),
+        format!("position{}", suffix(&units.position)),
+        format!("velocity{}", suffix(&units.velocity)),
+        format!("measured{sig}"),
+    ];
+    for k in 1..=series.len() {
+        let tag = if series.len() == 1 {
+            String::new()
+        } else {
+            format!("m{k}_")
+        };
+        header.push(format!("{tag}predicted{sig}"));
+        header.push(format!("{tag}residual{sig}"));
+    }
+    let path = dir.join("residual.csv");
+    let mut w =
+        csv::Writer::from_path(&path).with_context(|| format!("writing {}", path.display()))?;
+    w.write_record(&header)?;
+    let n = series.iter().map(|r| r.time.len()).min().unwrap_or(0);
+    for i in 0..n {
+        let at = |v: &[f64]| v.get(i).copied().unwrap_or(f64::NAN);
+        let mut row = vec![
+            at(&first.time),
+            at(&first.position),
+            at(&first.velocity),
+            at(&first.measured),
+        ];
+        for r in series {
+            row.push(at(&r.predicted));
+            row.push(at(&r.residual));
+        }
+        w.write_record(row.iter().map(|x| format!("{x}")))?;
+    }
+    w.flush()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
 }
 
 /// The report's zoomable view: the measurement and each model's prediction, and each model's
