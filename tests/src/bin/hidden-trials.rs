@@ -464,6 +464,16 @@ fn report(results: &[&Done], fails: bool) {
                     singles.len()
                 );
             }
+            let unphysical = singles
+                .iter()
+                .filter(|o| o.refit_unphysical.is_some())
+                .count();
+            if unphysical > 0 {
+                println!(
+                    "refits `fit` would not write (a parameter outside its physical range), failed: {unphysical}/{}",
+                    singles.len()
+                );
+            }
             if raised > 0 {
                 println!(
                     "refit floors raised by the base joint (≥ {INDISTINCT} floors beyond the start model): {raised}/{}",

@@ -458,6 +458,10 @@ pub struct Outcome {
     /// the validation record, in floors ([`Trial::base_val`]).
     #[serde(default)]
     pub base_val: Option<f64>,
+    /// Single-effect trials whose refitted model `fit` would refuse to write (a parameter
+    /// outside its physical range): why. Such a refit fails, whatever its score.
+    #[serde(default)]
+    pub refit_unphysical: Option<String>,
 }
 
 /// Below this strength beyond a simpler effect (the lower edge of the weak band), a record
@@ -516,7 +520,9 @@ impl Outcome {
     }
     /// The refit's validation RMS is within `bar` × the referee's floor.
     pub fn refit_ok(&self, bar: f64) -> bool {
-        self.error.is_none() && self.val_ratio.is_some_and(|r| r <= bar)
+        self.error.is_none()
+            && self.refit_unphysical.is_none()
+            && self.val_ratio.is_some_and(|r| r <= bar)
     }
     /// The refit bar can tell a refit from none, by the truth: the start model alone, which
     /// leaves the effect (ρ) and the base joint ([`Outcome::base_val`]) on top of the noise,
@@ -534,7 +540,8 @@ impl Outcome {
             self.families.first().map(String::as_str),
             Some("compliance" | "backlash")
         );
-        self.families.len() == 1 && (self.error.is_some() || spring || !alone_passes)
+        self.families.len() == 1
+            && (self.error.is_some() || self.refit_unphysical.is_some() || spring || !alone_passes)
     }
     /// `--auto` added exactly the two hidden effects (an extra effect is an error); an
     /// offset stands for gravity that a constant explains to within [`INDISTINCT`] of
@@ -644,6 +651,7 @@ fn judge(t: &Trial, out: &mut Outcome) -> Result<(), String> {
             let v = r.after_validation.ok_or("fit gave no validation score")?;
             let floor = t.floor_val_refit;
             out.val_ratio = Some(v.rms / floor);
+            out.refit_unphysical = m.physical().err().map(|e| e.to_string());
             if debug {
                 eprintln!(
                     "fit --add {}: estimation RMS/floor {:.3}, validation {:.3}; {:?}",
@@ -713,6 +721,7 @@ pub fn run(
         rho_beyond_offset: t.rho_beyond_offset,
         rho_beyond_spring: t.rho_beyond_spring,
         base_val: (families.len() == 1).then_some(t.base_val),
+        refit_unphysical: None,
     };
     match catch_unwind(AssertUnwindSafe(|| judge(&t, &mut out))) {
         Ok(Ok(())) => {}
@@ -790,6 +799,7 @@ mod tests {
             rho_beyond_offset: beyond_offset,
             rho_beyond_spring: None,
             base_val: None,
+            refit_unphysical: None,
         }
     }
 
@@ -879,7 +889,8 @@ mod tests {
 
     /// A refit counts only where a refit that adds nothing would fail its bar: the effect
     /// (ρ) and the base joint leave √(1 + b² + ρ²) floors, judged against √(1 + b²); a spring
-    /// is always judged, and so is a strength that is not a number.
+    /// is always judged, and so is a strength that is not a number or a refit `fit` would not
+    /// write.
     #[test]
     fn a_refit_counts_only_where_adding_nothing_would_fail() {
         let single = |rho: f64, base: f64| {
@@ -898,6 +909,12 @@ mod tests {
         let mut failed = single(0.1, 0.0);
         failed.error = Some("panicked".into());
         assert!(failed.refit_judgeable(1.1));
+        // A refit `fit` would not write fails and is always judged, whatever its score.
+        let mut unphysical = single(0.4, 0.0);
+        unphysical.val_ratio = Some(1.0);
+        assert!(unphysical.refit_ok(1.1));
+        unphysical.refit_unphysical = Some("gain = -9.5 is outside [0, 1]".into());
+        assert!(unphysical.refit_judgeable(1.1) && !unphysical.refit_ok(1.1));
         assert!(!outcome(&["offset", "coulomb"], &[], None).refit_judgeable(1.1));
         assert!(single(f64::NAN, 0.0).refit_judgeable(1.1));
         let mut spring = outcome(&["compliance"], &[], None);

@@ -657,6 +657,76 @@ mod tests {
         prepared("two-mass", columns, time, input, output, dt)
     }
 
+    /// A D/A coarser than the diagnosis's grid: its step is 1.1× the command's peak, so the
+    /// applied torque takes three levels (−Δ, 0, Δ). Handed the grid's coarsest step, the
+    /// refit finds the step with the gain held at 1, and the refitted joint is at its noise.
+    /// With the gain free such a step was fitted as a tenfold negative gain (a model no file
+    /// can hold) that explained little.
+    #[test]
+    fn a_quantiser_coarser_than_the_grid_is_found_with_its_gain_held_at_one() {
+        let (n, dt, j, b) = (12_000, 1e-3, J, 0.03);
+        let quantum = 0.11;
+        let (w1, w2) = (std::f64::consts::TAU * 0.7, std::f64::consts::TAU * 2.3);
+        let step = std::f64::consts::TAU / FINE;
+        let (mut time, mut input, mut output) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut x, mut v) = (0.0f64, 0.0f64);
+        let decay = (-b * dt / j).exp();
+        for i in 0..n {
+            let t = i as f64 * dt;
+            // The command, logged exactly; the D/A's output and a disturbance act.
+            let u = 0.06 * (w1 * t).sin() + 0.04 * (w2 * t + 1.0).sin();
+            let noise = (unit_uniform(2 * i as u64) - 0.5) * 12f64.sqrt() * 2e-3;
+            let applied = quantum * (u / quantum).round() + noise;
+            let jitter = (unit_uniform(2 * i as u64 + 1) - 0.5) * 12f64.sqrt() * 0.2 * step;
+            time.push(t);
+            input.push(u);
+            output.push(step * ((x + jitter) / step).round());
+            // Exact over the sample with the torque held: v → τ/b with time constant J/b.
+            let v_end = applied / b + (v - applied / b) * decay;
+            x += applied / b * dt + (v - applied / b) * (j / b) * (1.0 - decay);
+            v = v_end;
+        }
+        let p = prepared(
+            "coarse-da",
+            Columns::new("torque_Nm", "q_rad"),
+            time,
+            input,
+            output,
+            dt,
+        );
+        let mut m = Model::baseline();
+        refit_all(&mut m, &p).expect("fit");
+        let before = residual::equation_error(&m, &p).rms();
+        let peak = p.raw_input.iter().fold(0.0f64, |a, u| a.max(u.abs()));
+        m.add(
+            EffectKind::Quantization,
+            Shape {
+                quantum: peak / 1.5,
+                ..Shape::default()
+            },
+        );
+        refit_all(&mut m, &p).expect("fit");
+        let e = m
+            .effects
+            .iter()
+            .find(|e| e.kind == EffectKind::Quantization)
+            .expect("quantization");
+        let gain = e.params.first().expect("gain");
+        let after = residual::equation_error(&m, &p).rms();
+        assert!(
+            (e.shape.quantum / quantum - 1.0).abs() < 0.01 && gain.value == 1.0 && !gain.free,
+            "step {} (truth {quantum}), gain {} (free: {})",
+            e.shape.quantum,
+            gain.value,
+            gain.free
+        );
+        assert!(
+            after < 0.3 * before && m.physical().is_ok(),
+            "RMS {before} → {after}; {:?}",
+            m.physical()
+        );
+    }
+
     /// The compliance column holds the load's own drag, (J2·s + b₂)², and none of the
     /// motor's, while the rigid fit gives only their sum: the refit finds where the drag
     /// sits, a bearing's at the motor or a seal's at the load.

@@ -791,8 +791,13 @@ fn search_quantum(model: &mut Model, p: &On, e: usize) {
         10,
         &set_quantum,
     );
-    // The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
-    // section, then Δ once more at that blur.
+    blur_then_step(model, p, e, step);
+    search_coarse_quantum(model, p, e, range);
+}
+
+/// The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
+/// section, then Δ once more at that blur (within ±2 `step`, relative). Returns the RSS.
+fn blur_then_step(model: &mut Model, p: &On, e: usize, step: f64) -> f64 {
     let d = model.effects[e].shape.quantum;
     let set_blur = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.quantum_blur = x.max(0.0);
     let blurs: Vec<f64> = [0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.18, 0.25, 0.35]
@@ -811,7 +816,59 @@ fn search_quantum(model: &mut Model, p: &On, e: usize) {
         d,
         10,
         &set_quantum,
+    )
+    .1
+}
+
+/// Relative spacing of the coarse steps [`search_coarse_quantum`] scans.
+const COARSE_QUANTUM_SPACING: f64 = 0.015;
+
+/// A D/A coarser than the diagnosis's grid: fewer than three levels over the command. The
+/// grid stops at ⅔ of the command's peak because there, with the gain free, the sawtooth is
+/// nearly a copy of the command and explains any residual. With the gain held at its physical
+/// 1 the quantiser must reproduce the applied torque itself, so steps from ⅔ of the peak to
+/// just under twice it (beyond, every command rounds to 0) are searched that way, and the
+/// best is kept where it fits better than the step found above, or where the gain found
+/// above left its physical range [0, 1]. A gain the model file holds fixed is left alone.
+fn search_coarse_quantum(model: &mut Model, p: &On, e: usize, range: f64) {
+    let Some(g) = model.effects[e]
+        .params
+        .iter()
+        .position(|q| q.name == "gain")
+    else {
+        return;
+    };
+    if !(range > 0.0 && model.effects[e].params[g].free) {
+        return;
+    }
+    let found = ls_rss(&mut model.clone(), p);
+    let gain = model.effects[e].params[g].value;
+    let mut held = model.clone();
+    held.effects[e].shape.quantum_blur = 0.0;
+    if let Some(q) = held.effects[e].params.get_mut(g) {
+        q.value = 1.0;
+        q.free = false;
+        q.sigma = None;
+    }
+    let (lo, hi) = (range / 1.5, 1.95 * range);
+    let count = ((hi / lo).ln() / COARSE_QUANTUM_SPACING.ln_1p()).ceil() as usize;
+    let mut xs = sim_plant::effects::signal::log_space(lo, hi, count.max(2));
+    xs.push(model.effects[e].shape.quantum);
+    let (d, _) = line_search(&mut held, p, e, &xs, &set_quantum);
+    let h = COARSE_QUANTUM_SPACING;
+    golden(
+        &mut held,
+        p,
+        e,
+        (d / (1.0 + h), d * (1.0 + h)),
+        d,
+        10,
+        &set_quantum,
     );
+    let rss = blur_then_step(&mut held, p, e, 0.1 * h);
+    if rss < found || !(0.0..=1.0).contains(&gain) {
+        *model = held;
+    }
 }
 
 /// Best grid shape of `kind` against the current model's residual (largest ERR).
