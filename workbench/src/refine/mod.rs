@@ -657,15 +657,12 @@ mod tests {
         prepared("two-mass", columns, time, input, output, dt)
     }
 
-    /// A D/A coarser than the diagnosis's grid: its step is 1.1× the command's peak, so the
-    /// applied torque takes three levels (−Δ, 0, Δ). Handed the grid's coarsest step, the
-    /// refit finds the step with the gain held at 1, and the refitted joint is at its noise.
-    /// With the gain free such a step was fitted as a tenfold negative gain (a model no file
-    /// can hold) that explained little.
-    #[test]
-    fn a_quantiser_coarser_than_the_grid_is_found_with_its_gain_held_at_one() {
+    /// A joint driven open loop through a D/A of step `quantum` (the command, a two-tone
+    /// multisine peaking near 0.1 N·m, logged exactly; a disturbance after the D/A), and the
+    /// refit of the baseline plus quantization handed the step `start`: the found step, the
+    /// gain and whether it is free, the RMS before and after, and the model.
+    fn refit_da(quantum: f64, start: f64) -> (f64, crate::model::Param, f64, f64, Model) {
         let (n, dt, j, b) = (12_000, 1e-3, J, 0.03);
-        let quantum = 0.11;
         let (w1, w2) = (std::f64::consts::TAU * 0.7, std::f64::consts::TAU * 2.3);
         let step = std::f64::consts::TAU / FINE;
         let (mut time, mut input, mut output) = (Vec::new(), Vec::new(), Vec::new());
@@ -673,7 +670,6 @@ mod tests {
         let decay = (-b * dt / j).exp();
         for i in 0..n {
             let t = i as f64 * dt;
-            // The command, logged exactly; the D/A's output and a disturbance act.
             let u = 0.06 * (w1 * t).sin() + 0.04 * (w2 * t + 1.0).sin();
             let noise = (unit_uniform(2 * i as u64) - 0.5) * 12f64.sqrt() * 2e-3;
             let applied = quantum * (u / quantum).round() + noise;
@@ -687,7 +683,7 @@ mod tests {
             v = v_end;
         }
         let p = prepared(
-            "coarse-da",
+            "da",
             Columns::new("torque_Nm", "q_rad"),
             time,
             input,
@@ -697,11 +693,10 @@ mod tests {
         let mut m = Model::baseline();
         refit_all(&mut m, &p).expect("fit");
         let before = residual::equation_error(&m, &p).rms();
-        let peak = p.raw_input.iter().fold(0.0f64, |a, u| a.max(u.abs()));
         m.add(
             EffectKind::Quantization,
             Shape {
-                quantum: peak / 1.5,
+                quantum: start,
                 ..Shape::default()
             },
         );
@@ -711,12 +706,22 @@ mod tests {
             .iter()
             .find(|e| e.kind == EffectKind::Quantization)
             .expect("quantization");
-        let gain = e.params.first().expect("gain");
+        let (found, gain) = (e.shape.quantum, e.params.first().expect("gain").clone());
         let after = residual::equation_error(&m, &p).rms();
+        (found, gain, before, after, m)
+    }
+
+    /// A D/A coarser than the diagnosis's grid: its step is 1.1× the command's peak, so the
+    /// applied torque takes three levels (−Δ, 0, Δ). Handed the grid's coarsest step (⅔ of
+    /// the peak), the refit finds the step with the gain held at 1 and a physical model.
+    /// With the gain free such a step was fitted as a tenfold negative gain (a model no file
+    /// can hold) that explained little.
+    #[test]
+    fn a_quantiser_coarser_than_the_grid_is_found_with_its_gain_held_at_one() {
+        let (found, gain, before, after, m) = refit_da(0.11, 0.1 / 1.5);
         assert!(
-            (e.shape.quantum / quantum - 1.0).abs() < 0.01 && gain.value == 1.0 && !gain.free,
-            "step {} (truth {quantum}), gain {} (free: {})",
-            e.shape.quantum,
+            (found / 0.11 - 1.0).abs() < 0.01 && gain.value == 1.0 && !gain.free,
+            "step {found} (truth 0.11), gain {} (free: {})",
             gain.value,
             gain.free
         );
@@ -725,6 +730,20 @@ mod tests {
             "RMS {before} → {after}; {:?}",
             m.physical()
         );
+    }
+
+    /// The coarse steps do not take a fine quantiser's place: at a step of a tenth of the
+    /// peak the refit keeps that step with its gain free.
+    #[test]
+    fn a_fine_quantiser_keeps_its_step_and_free_gain() {
+        let (found, gain, before, after, _) = refit_da(0.01, 0.0103);
+        assert!(
+            (found / 0.01 - 1.0).abs() < 0.01 && gain.free && (0.0..=1.0).contains(&gain.value),
+            "step {found} (truth 0.01), gain {} (free: {})",
+            gain.value,
+            gain.free
+        );
+        assert!(after < 0.5 * before, "RMS {before} → {after}");
     }
 
     /// The compliance column holds the load's own drag, (J2·s + b₂)², and none of the

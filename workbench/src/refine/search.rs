@@ -89,13 +89,28 @@ fn line_search(
     xs: &[f64],
     set: &(dyn Fn(&mut Model, usize, f64) + Sync),
 ) -> (f64, f64) {
+    line_search_by(model, p, e, xs, set, &ls_rss)
+}
+
+/// What a search minimises over a refitted model.
+type Cost = dyn Fn(&mut Model, &On) -> f64 + Sync;
+
+/// [`line_search`] by `cost` instead of the LS RSS.
+fn line_search_by(
+    model: &mut Model,
+    p: &On,
+    e: usize,
+    xs: &[f64],
+    set: &(dyn Fn(&mut Model, usize, f64) + Sync),
+    cost: &Cost,
+) -> (f64, f64) {
     use rayon::prelude::*;
     let fits: Vec<(f64, Model)> = xs
         .par_iter()
         .map(|&x| {
             let mut m = model.clone();
             set(&mut m, e, x);
-            (ls_rss(&mut m, p), m)
+            (cost(&mut m, p), m)
         })
         .collect();
     let mut best = (f64::NAN, f64::INFINITY);
@@ -149,16 +164,31 @@ fn golden(
     model: &mut Model,
     p: &On,
     e: usize,
+    bracket: (f64, f64),
+    keep: f64,
+    iters: usize,
+    set: &(dyn Fn(&mut Model, usize, f64) + Sync),
+) -> (f64, f64) {
+    golden_by(model, p, e, bracket, keep, iters, set, &ls_rss)
+}
+
+/// [`golden`] by `cost` instead of the LS RSS.
+#[allow(clippy::too_many_arguments)]
+fn golden_by(
+    model: &mut Model,
+    p: &On,
+    e: usize,
     (mut lo, mut hi): (f64, f64),
     keep: f64,
     iters: usize,
     set: &(dyn Fn(&mut Model, usize, f64) + Sync),
+    cost: &Cost,
 ) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let eval = |x: f64| {
         let mut m = model.clone();
         set(&mut m, e, x);
-        ls_rss(&mut m, p)
+        cost(&mut m, p)
     };
     let (mut a, mut b) = (hi - g * (hi - lo), lo + g * (hi - lo));
     let (mut fa, mut fb) = (eval(a), eval(b));
@@ -177,7 +207,7 @@ fn golden(
     }
     let x = if fa < fb { a } else { b };
     // Never worse than the grid point the bracket was built around.
-    line_search(model, p, e, &[x, keep], set)
+    line_search_by(model, p, e, &[x, keep], set, cost)
 }
 
 /// The shapes `screen` (a periodogram of a residual, see `sim_plant::effects::screen`)
@@ -791,24 +821,33 @@ fn search_quantum(model: &mut Model, p: &On, e: usize) {
         10,
         &set_quantum,
     );
-    blur_then_step(model, p, e, step);
+    blur_then_step(model, p, e, step, &ls_rss);
     search_coarse_quantum(model, p, e, range);
 }
 
 /// The recorded command's noise blurs the sawtooth's jumps: σ/Δ on a grid, then golden
-/// section, then Δ once more at that blur (within ±2 `step`, relative). Returns the RSS.
-fn blur_then_step(model: &mut Model, p: &On, e: usize, step: f64) -> f64 {
+/// section, then Δ once more at that blur (within ±2 `step`, relative). Returns the cost.
+fn blur_then_step(model: &mut Model, p: &On, e: usize, step: f64, cost: &Cost) -> f64 {
     let d = model.effects[e].shape.quantum;
     let set_blur = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.quantum_blur = x.max(0.0);
     let blurs: Vec<f64> = [0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.18, 0.25, 0.35]
         .iter()
         .map(|r| r * d)
         .collect();
-    let (b0, _) = line_search(model, p, e, &blurs, &set_blur);
+    let (b0, _) = line_search_by(model, p, e, &blurs, &set_blur, cost);
     let h = 0.03 * d;
-    golden(model, p, e, ((b0 - h).max(0.0), b0 + h), b0, 10, &set_blur);
+    golden_by(
+        model,
+        p,
+        e,
+        ((b0 - h).max(0.0), b0 + h),
+        b0,
+        10,
+        &set_blur,
+        cost,
+    );
     let d = model.effects[e].shape.quantum;
-    golden(
+    golden_by(
         model,
         p,
         e,
@@ -816,6 +855,7 @@ fn blur_then_step(model: &mut Model, p: &On, e: usize, step: f64) -> f64 {
         d,
         10,
         &set_quantum,
+        cost,
     )
     .1
 }
@@ -827,9 +867,10 @@ const COARSE_QUANTUM_SPACING: f64 = 0.015;
 /// grid stops at ⅔ of the command's peak because there, with the gain free, the sawtooth is
 /// nearly a copy of the command and explains any residual. With the gain held at its physical
 /// 1 the quantiser must reproduce the applied torque itself, so steps from ⅔ of the peak to
-/// just under twice it (beyond, every command rounds to 0) are searched that way, and the
-/// best is kept where it fits better than the step found above, or where the gain found
-/// above left its physical range [0, 1]. A gain the model file holds fixed is left alone.
+/// just under twice it (beyond, every command rounds to 0) are searched that way, by
+/// [`acceleration_rss`], and the best is kept where it fits better than the step found above,
+/// or where the gain found above left its physical range [0, 1]. A gain the model file holds
+/// fixed is left alone.
 fn search_coarse_quantum(model: &mut Model, p: &On, e: usize, range: f64) {
     let Some(g) = model.effects[e]
         .params
@@ -841,7 +882,7 @@ fn search_coarse_quantum(model: &mut Model, p: &On, e: usize, range: f64) {
     if !(range > 0.0 && model.effects[e].params[g].free) {
         return;
     }
-    let found = ls_rss(&mut model.clone(), p);
+    let found = acceleration_rss(&mut model.clone(), p);
     let gain = model.effects[e].params[g].value;
     let mut held = model.clone();
     held.effects[e].shape.quantum_blur = 0.0;
@@ -854,9 +895,9 @@ fn search_coarse_quantum(model: &mut Model, p: &On, e: usize, range: f64) {
     let count = ((hi / lo).ln() / COARSE_QUANTUM_SPACING.ln_1p()).ceil() as usize;
     let mut xs = sim_plant::effects::signal::log_space(lo, hi, count.max(2));
     xs.push(model.effects[e].shape.quantum);
-    let (d, _) = line_search(&mut held, p, e, &xs, &set_quantum);
+    let (d, _) = line_search_by(&mut held, p, e, &xs, &set_quantum, &acceleration_rss);
     let h = COARSE_QUANTUM_SPACING;
-    golden(
+    golden_by(
         &mut held,
         p,
         e,
@@ -864,10 +905,26 @@ fn search_coarse_quantum(model: &mut Model, p: &On, e: usize, range: f64) {
         d,
         10,
         &set_quantum,
+        &acceleration_rss,
     );
-    let rss = blur_then_step(&mut held, p, e, 0.1 * h);
-    if rss < found || !(0.0..=1.0).contains(&gain) {
+    let cost = blur_then_step(&mut held, p, e, 0.1 * h, &acceleration_rss);
+    if cost < found || !(0.0..=1.0).contains(&gain) {
         *model = held;
+    }
+}
+
+/// The equation error in acceleration, RSS/J², for comparing fits whose regressand differs.
+/// With the quantiser's gain held at 1 the fitted torque is the quantiser's output, which a
+/// step near twice the command's peak holds at 0 almost everywhere: a fit with J → 0 then
+/// leaves a small RSS while explaining nothing. Over J² it does not. An inertia that is not
+/// positive scores ∞.
+fn acceleration_rss(m: &mut Model, p: &On) -> f64 {
+    let rss = ls_rss(m, p);
+    let j = m.inertia.value;
+    if j > 0.0 && j.is_finite() {
+        rss / (j * j)
+    } else {
+        f64::INFINITY
     }
 }
 
