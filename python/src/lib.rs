@@ -589,6 +589,7 @@ fn py_compare(
             "metrics": metrics,
             "params": refine::param_rows(&m),
             "report": null,
+            "residual_csv": null,
             "resampled": rec.inner.resampled,
             "series": {
                 "time": res.time,
