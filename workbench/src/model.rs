@@ -235,7 +235,12 @@ impl Model {
 
     /// Does the model contain this effect?
     pub fn has(&self, kind: EffectKind) -> bool {
-        self.effects.iter().any(|e| e.kind == kind)
+        self.effect(kind).is_some()
+    }
+
+    /// The model's entry for this effect, if it holds one.
+    pub fn effect(&self, kind: EffectKind) -> Option<&EffectEntry> {
+        self.effects.iter().find(|e| e.kind == kind)
     }
 
     /// Add an effect with free, zero amplitudes.
@@ -517,16 +522,9 @@ impl Model {
     /// it, at most the whole (a refit after the share was searched can lower the drag).
     fn load_drag(&self) -> Option<(f64, f64)> {
         let spring = self
-            .effects
-            .iter()
-            .find(|e| e.kind == EffectKind::Compliance && e.shape.compliance_near_inertia > 0.0)?;
-        let v = self
-            .effects
-            .iter()
-            .find(|e| e.kind == EffectKind::Viscous)?
-            .params
-            .first()?
-            .value;
+            .effect(EffectKind::Compliance)
+            .filter(|e| e.shape.compliance_near_inertia > 0.0)?;
+        let v = self.effect(EffectKind::Viscous)?.params.first()?.value;
         (v.is_finite() && v > 0.0).then(|| {
             let load = spring.shape.compliance_load_damping;
             (
@@ -966,20 +964,12 @@ mod tests {
             let spring = sim.effects.compliance.as_ref().unwrap().damping.value;
             assert!((spring - (c_mode - kept)).abs() < 1e-12, "{spring}");
             let back = Model::from_sim(&sim).unwrap();
-            let e = back
-                .effects
-                .iter()
-                .find(|e| e.kind == EffectKind::Compliance)
-                .unwrap();
+            let e = back.effect(EffectKind::Compliance).unwrap();
             assert!((e.shape.compliance_frequency - 25.0).abs() < 1e-9);
             assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
             // The column's own value comes back as fitted (the file's split is capped).
             assert_eq!(e.shape.compliance_load_damping, load);
-            let viscous = back
-                .effects
-                .iter()
-                .find(|e| e.kind == EffectKind::Viscous)
-                .unwrap();
+            let viscous = back.effect(EffectKind::Viscous).unwrap();
             assert!((viscous.params[0].value - 0.1).abs() < 1e-12);
             // A file of the older layout (the whole drag at the load, the mode's damping in
             // the spring) reads back as the same model: its fit record's mode tells it.
@@ -988,11 +978,7 @@ mod tests {
             old.effects.viscous.as_mut().unwrap().damping.value = 0.1;
             old.motor.damping.value = 0.0;
             let back = Model::from_sim(&old).unwrap();
-            let e = back
-                .effects
-                .iter()
-                .find(|e| e.kind == EffectKind::Compliance)
-                .unwrap();
+            let e = back.effect(EffectKind::Compliance).unwrap();
             assert!((e.shape.compliance_damping - 0.05).abs() < 1e-9);
         }
     }
