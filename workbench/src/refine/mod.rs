@@ -844,34 +844,6 @@ mod tests {
         assert!(bic(&fitted, &offset) < bic(&m1, &offset));
     }
 
-    /// A fit stays in the parameters' physical range: on a joint that a friction *assists*
-    /// (a negative Coulomb level, which no plant file can hold) the Coulomb term is held at 0
-    /// with no 1σ and the rest refits to the best model that exists; a drag the data do
-    /// support is fitted as before.
-    #[test]
-    fn a_fit_holds_a_parameter_at_its_physical_bound() {
-        let assisted = synthetic(|_, v| -0.005 * v.signum(), FINE);
-        let mut m = Model::baseline();
-        m.add(EffectKind::Coulomb, Shape::default());
-        residual::refit(&mut m, &assisted).expect("fit");
-        let c = &m.effect(EffectKind::Coulomb).expect("coulomb").params[0];
-        assert_eq!(c.value, 0.0);
-        assert!(c.free && c.sigma.is_none(), "{c:?}");
-        assert!(m.physical().is_ok());
-        // The viscous drag (0.03) takes what it can of the assist, which lowers it, and stays a
-        // drag.
-        let b = m.effect(EffectKind::Viscous).expect("viscous").params[0].value;
-        assert!(b > 0.0 && b < 0.03, "{b}");
-        // The bound is physical, not a clamp of every fit: a real drag comes out as itself.
-        let dragged = synthetic(|_, v| 0.005 * v.signum(), FINE);
-        residual::refit(&mut m, &dragged).expect("fit");
-        let c = &m.effect(EffectKind::Coulomb).expect("coulomb").params[0];
-        assert!(
-            (c.value / 0.005 - 1.0).abs() < 0.1 && c.sigma.is_some(),
-            "{c:?}"
-        );
-    }
-
     /// On a rigid joint whose residual is mostly the encoder's quantisation through the
     /// differentiator, the diagnosis's floor must hold that noise (so the baseline reads as
     /// being at its floor, not 6× above it), and a verdict drawn there must carry the warning

@@ -379,12 +379,13 @@ pub fn noise_energy_sd(h: &[f64], sigma2: f64, rows: usize) -> f64 {
 
 /// Fit all free amplitudes by linear least squares; writes values and 1σ into the model.
 ///
-/// A parameter is kept inside its [`Model::fit_bounds`] (its model file's `min`/`max` and its
-/// physical range): when the unconstrained fit puts free parameters outside, the one furthest
-/// outside (relative to its 1σ) is held at its bound and the rest refitted, until none is
-/// outside — an active set that only grows, so at most one refit per bounded parameter. A
-/// parameter held at its bound stays free in the model, with no 1σ (the fit did not estimate
-/// it).
+/// A parameter with `min`/`max` bounds (from its model file) is kept inside them: when the
+/// unconstrained fit puts free parameters outside, the one furthest outside (relative to its
+/// 1σ) is held at its bound and the rest refitted, until none is outside — an active set that
+/// only grows, so at most one refit per bounded parameter. A parameter held at its bound stays
+/// free in the model, with no 1σ (the fit did not estimate it; see [`Param::bound_reached`]).
+///
+/// [`Param::bound_reached`]: crate::model::Param::bound_reached
 pub fn refit(model: &mut Model, p: &Prepared) -> Result<LsFit, fit::FitError> {
     refit_with(model, p, None)
 }
@@ -398,18 +399,17 @@ pub fn refit_with(
 ) -> Result<LsFit, fit::FitError> {
     let mut fit = refit_unbounded(model, p, memo)?;
     let mut held = Vec::new();
-    let bounds = model.fit_bounds();
     loop {
         let params = model.params();
         let outside = params
             .iter()
-            .zip(&bounds)
             .enumerate()
-            .filter(|(_, (q, _))| q.free)
-            .filter_map(|(i, (q, &(lo, hi)))| {
-                let bound = lo
+            .filter(|(_, q)| q.free)
+            .filter_map(|(i, q)| {
+                let bound = q
+                    .min
                     .filter(|lo| q.value < *lo)
-                    .or(hi.filter(|hi| q.value > *hi))?;
+                    .or(q.max.filter(|hi| q.value > *hi))?;
                 let sigma = q.sigma.filter(|s| *s > 0.0).unwrap_or(1.0);
                 Some((i, bound, (q.value - bound).abs() / sigma))
             })
