@@ -243,6 +243,49 @@ impl Model {
         self.effects.iter().find(|e| e.kind == kind)
     }
 
+    /// The range the fit keeps each parameter in, in [`Model::params`] order: the file's
+    /// `min`/`max` where it gives them, narrowed to the parameter's physical range.
+    ///
+    /// Why the physical range: `fit` refuses to write a model with a parameter outside it (a
+    /// negative Coulomb level, Stribeck excess, viscous drag or load inertia has no plant), so an
+    /// unconstrained least-squares optimum there is not a model the user can have. Held at the
+    /// bound (see [`crate::residual::refit_in_range`]), the rest refits to the best model that
+    /// exists. The quantiser's gain is the one exception: its refit reads a gain outside
+    /// [0, 1] as a step not yet found and searches further (`refine::search`), and `fit` then
+    /// refuses what it could not mend.
+    pub fn fit_bounds(&self) -> Vec<(Option<f64>, Option<f64>)> {
+        let phys = |kind: Option<EffectKind>, name: &str| -> (Option<f64>, Option<f64>) {
+            match (kind, name) {
+                (None, _) => (Some(0.0), None),
+                (Some(EffectKind::Quantization), "gain") => (None, None),
+                // The load inertia beyond a gap (`plant.output_inertia`) and −J2/J1 of a spring.
+                (Some(EffectKind::Backlash), "load_inertia") => (Some(0.0), None),
+                (Some(EffectKind::Compliance), "inertia_ratio") => (None, Some(0.0)),
+                (Some(k), n) => k
+                    .params()
+                    .iter()
+                    .find(|s| s.name == n && matches!(s.role, sim_plant::param::Role::Amplitude(_)))
+                    .map_or((None, None), |s| (Some(s.min), Some(s.max))),
+            }
+        };
+        self.params()
+            .iter()
+            .zip(self.param_owners())
+            .map(|(q, o)| {
+                let (lo, hi) = phys(o, &q.name);
+                let lo = match (q.min, lo) {
+                    (Some(a), Some(b)) => Some(a.max(b)),
+                    (a, b) => a.or(b),
+                };
+                let hi = match (q.max, hi) {
+                    (Some(a), Some(b)) => Some(a.min(b)),
+                    (a, b) => a.or(b),
+                };
+                (lo, hi)
+            })
+            .collect()
+    }
+
     /// Add an effect with free, zero amplitudes.
     pub fn add(&mut self, kind: EffectKind, shape: Shape) {
         self.effects.push(EffectEntry::new(kind, shape));

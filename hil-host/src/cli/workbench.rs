@@ -1116,11 +1116,19 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
             print!("{g}");
         }
         print!("{}", fit_text(&r));
-        for q in model.params().iter().filter(|q| q.free) {
-            if let Some(b) = q.bound_reached().filter(|_| q.sigma.is_none()) {
+        for (q, (lo, hi)) in model.params().iter().zip(model.fit_bounds()) {
+            let at = lo
+                .filter(|lo| q.value <= *lo)
+                .or(hi.filter(|hi| q.value >= *hi));
+            if let Some(b) = at.filter(|_| q.free && q.sigma.is_none()) {
+                let why = if q.bound_reached().is_some() {
+                    "the model file's min/max"
+                } else {
+                    "its physical range"
+                };
                 println!(
-                    "note: {} is held at its bound {b:e} (the model file's min/max): the fit \
-                     would take it beyond, so it has no 1σ",
+                    "note: {} is held at its bound {b:e} ({why}): the fit would take it \
+                     beyond, so it has no 1σ",
                     q.name
                 );
             }

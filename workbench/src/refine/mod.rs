@@ -189,6 +189,20 @@ fn refit_from(
     start: StickStart,
     only: Only,
 ) -> Result<(), fit::FitError> {
+    refit_from_searched(model, p, start, only)?;
+    if residual::out_of_range(model) {
+        residual::refit_in_range(model, p)?;
+    }
+    Ok(())
+}
+
+/// [`refit_from`]'s shape searches and least squares, without the physical range.
+fn refit_from_searched(
+    model: &mut Model,
+    p: &Prepared,
+    start: StickStart,
+    only: Only,
+) -> Result<(), fit::FitError> {
     let on = On::new(p);
     on.refit(model)?;
     search_shapes(model, &on, start, only);
@@ -842,6 +856,34 @@ mod tests {
             .expect("the offset in the data was not taken");
         assert_eq!(c.effect, EffectKind::Offset);
         assert!(bic(&fitted, &offset) < bic(&m1, &offset));
+    }
+
+    /// A fit stays in the parameters' physical range: on a joint that a friction *assists*
+    /// (a negative Coulomb level, which no plant file can hold) the Coulomb term is held at 0
+    /// with no 1σ and the rest refits to the best model that exists; a drag the data do
+    /// support is fitted as before.
+    #[test]
+    fn a_fit_holds_a_parameter_at_its_physical_bound() {
+        let assisted = synthetic(|_, v| -0.005 * v.signum(), FINE);
+        let mut m = Model::baseline();
+        m.add(EffectKind::Coulomb, Shape::default());
+        refit_all(&mut m, &assisted).expect("fit");
+        let c = &m.effect(EffectKind::Coulomb).expect("coulomb").params[0];
+        assert_eq!(c.value, 0.0);
+        assert!(c.free && c.sigma.is_none(), "{c:?}");
+        assert!(m.physical().is_ok());
+        // The viscous drag (0.03) takes what it can of the assist, which lowers it, and stays a
+        // drag.
+        let b = m.effect(EffectKind::Viscous).expect("viscous").params[0].value;
+        assert!(b > 0.0 && b < 0.03, "{b}");
+        // The bound is physical, not a clamp of every fit: a real drag comes out as itself.
+        let dragged = synthetic(|_, v| 0.005 * v.signum(), FINE);
+        refit_all(&mut m, &dragged).expect("fit");
+        let c = &m.effect(EffectKind::Coulomb).expect("coulomb").params[0];
+        assert!(
+            (c.value / 0.005 - 1.0).abs() < 0.1 && c.sigma.is_some(),
+            "{c:?}"
+        );
     }
 
     /// On a rigid joint whose residual is mostly the encoder's quantisation through the
