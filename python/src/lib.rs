@@ -475,7 +475,9 @@ fn py_auto(
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
         let mut m = fitted(rec, model, &p)?;
-        let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
+        let val = validate
+            .map(|v| prepared(v, Some(p.cutoff_hz)))
+            .transpose()?;
         let run = refine::auto(&mut m, &p, val.as_ref(), &opts, max_steps)
             .map_err(|e| fit_error("", e))?;
         let mut j = json!({
@@ -519,7 +521,9 @@ fn py_fit(
     py.detach(|| {
         let p = prepared(rec, cutoff)?;
         m.on_axis(p.axis, &p.input_unit).map_err(model_error)?;
-        let val = validate.map(|v| prepared(v, cutoff)).transpose()?;
+        let val = validate
+            .map(|v| prepared(v, Some(p.cutoff_hz)))
+            .transpose()?;
         let as_given = model.map(|_| {
             json!({
                 "estimation": refine::score(&m, &p),

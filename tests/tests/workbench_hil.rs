@@ -82,10 +82,26 @@ fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
     let rel = (m.inertia.value - j).abs() / j;
     assert!(rel < 0.05, "inertia {} vs {j} ({rel})", m.inertia.value);
 
-    // `--auto`: the cable's compliant stages are the largest thing a rigid friction model
-    // leaves after Coulomb friction; at the grid shape a backlash explains about as much, but
-    // once refitted the transmission mode — with a physical split, J2/J1 > 0 — explains a
-    // third of the residual and wins `choose`.
+    // The default band follows the card's 2304-count encoder (about 10 Hz, modes searched to
+    // twice that): the cable's mode sits at its edge, and the diagnosis says which band
+    // reaches it.
+    assert!(
+        dg.notes
+            .iter()
+            .any(|n| n.starts_with("compliance: best shape at the edge")
+                && n.contains("--cutoff 100")),
+        "{:?}",
+        dg.notes
+    );
+    // `--auto` in that band (the card's own observer band): the cable's compliant stages are
+    // the largest thing a rigid friction model leaves after Coulomb friction; at the grid
+    // shape a backlash explains about as much, but once refitted the transmission mode —
+    // with a physical split, J2/J1 > 0 — explains a third of the residual and wins `choose`.
+    let band = controller::card::config::OBSERVER_BANDWIDTH_HZ;
+    let p = Prepared::new(
+        &jointlab_tests::hil_identify_record(&dir, preset),
+        Some(band),
+    );
     let mut auto_model = Model::baseline();
     let run = refine::auto(&mut auto_model, &p, None, &Options::default(), 6).unwrap();
     let added: Vec<_> = run.steps.iter().filter_map(|s| s.added.clone()).collect();

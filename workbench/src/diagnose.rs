@@ -149,6 +149,9 @@ pub struct Diagnosis {
     pub residual_mode: String,
     /// The input's intersample behaviour the residual assumed (`zoh`, `foh`, `mid`, `bl`).
     pub intersample: String,
+    /// The differentiator's cut-off the residual was formed in (Hz): `--cutoff`, or the
+    /// default the record's encoder noise sets.
+    pub cutoff_hz: f64,
     /// Current-model numbers.
     pub baseline: Baseline,
     /// Ranked candidates.
@@ -720,9 +723,19 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
             && explained_rms >= opts.min_rho * floor
             && resolved;
         if !resolved && c.err > 0.0 {
+            // Modes are searched up to twice the cut-off: name the band that reaches higher.
+            let wider = crate::diff::default_cutoff(p.dt, None);
+            let how = if wider > 1.01 * p.cutoff_hz {
+                format!(
+                    "--cutoff {wider:.0} tests modes up to {:.0} Hz",
+                    2.0 * wider
+                )
+            } else {
+                "a higher --cutoff tests higher modes".to_string()
+            };
             notes.push(format!(
                 "{}: best shape at the edge of what this record resolves (a transmission mode \
-                 above its bandwidth); ranked, never a verdict",
+                 above its bandwidth); ranked, never a verdict — {how}",
                 c.effect
             ));
         }
@@ -864,6 +877,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
     Diagnosis {
         residual_mode: residual::Mode::Equation.name().into(),
         intersample: p.intersample.name().into(),
+        cutoff_hz: p.cutoff_hz,
         baseline,
         candidates: cands,
         verdict,
@@ -991,6 +1005,7 @@ impl Diagnosis {
         serde_json::json!({
             "residual_mode": self.residual_mode,
             "intersample": self.intersample,
+            "cutoff_hz": self.cutoff_hz,
             "baseline": self.baseline,
             "candidates": self.candidates,
             "verdict": self.verdict,
@@ -1005,7 +1020,11 @@ impl Diagnosis {
         let mut s = String::new();
         let b = &self.baseline;
         let _ = writeln!(s, "model: {}", b.model);
-        let _ = writeln!(s, "input between samples: {}", self.intersample);
+        let _ = writeln!(
+            s,
+            "input between samples: {}   differentiator cut-off: {:.1} Hz",
+            self.intersample, self.cutoff_hz
+        );
         let _ = writeln!(
             s,
             "residual: {}   fit {:.2} %   RMS {}   noise floor {} (input {}, encoder {})   \

@@ -7,8 +7,8 @@
 //! measured input sample by sample (a lagging differentiator would itself look like a `delay`
 //! effect in the residual); and its cut-off is one number a user can reason about (keep it
 //! above the motion bandwidth and below where encoder quantisation noise dominates). The
-//! default cut-off is a tenth of the sample rate, at most 100 Hz. Because a forward–backward filter rings at
-//! the ends, [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
+//! default cut-off follows the record's own encoder noise ([`default_cutoff`]), within a
+//! tenth of the sample rate and 100 Hz. Because a forward–backward filter rings at the ends, [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
 //!
 //! Five points rather than three: the three-point second difference reads an acceleration at
 //! a tenth of the sample rate (the default band's edge) 3.3 % low, (ω·dt)²/12, and a joint's
@@ -118,9 +118,53 @@ pub fn differentiate(x: &[f64], dt: f64, fc: f64) -> Derivatives {
 /// motion) would pass as a structured residual. It is also the EMPS authors' band.
 pub const MAX_DEFAULT_CUTOFF_HZ: f64 = 100.0;
 
-/// Default cut-off: a tenth of the sample rate, at most [`MAX_DEFAULT_CUTOFF_HZ`].
-pub fn default_cutoff(dt: f64) -> f64 {
-    (0.1 / dt).min(MAX_DEFAULT_CUTOFF_HZ)
+/// The reference band: 40 Hz for a 2¹⁶-count/rev encoder logged at 1 kHz, the band advised
+/// for it (its noise in the acceleration is a tenth of what it is at 100 Hz). A rotary
+/// record's default band holds its own encoder's noise in the acceleration at this
+/// reference's level.
+pub const REFERENCE_CUTOFF_HZ: f64 = 40.0;
+
+/// The reference encoder's noise (rad RMS): one count of 2¹⁶ per revolution, uniform.
+pub const REFERENCE_ENCODER_NOISE_RAD: f64 =
+    std::f64::consts::TAU / 65_536.0 / 3.464_101_615_137_754_6;
+
+/// Lowest default cut-off, as a fraction of the sample rate: below it the differentiator's
+/// edges (several periods of the cut-off) eat a short record.
+pub const MIN_DEFAULT_CUTOFF_RATE: f64 = 0.005;
+
+/// Default cut-off for a record at period `dt` whose position noise (encoder quantisation
+/// and sensor noise, RMS, rad) is `encoder_noise_rad`: the band where that noise reaches the
+/// acceleration at the level [`REFERENCE_ENCODER_NOISE_RAD`] does at [`REFERENCE_CUTOFF_HZ`]
+/// and 1 kHz (found on this differentiator's own noise gain), within
+/// [[`MIN_DEFAULT_CUTOFF_RATE`]·f_s, min(f_s/10, [`MAX_DEFAULT_CUTOFF_HZ`])]. The encoder's
+/// noise in the acceleration grows as f_c^2.5 while the effects sit at the motion's
+/// frequencies: a coarse encoder logged at 100 Hz of band buries them. `None` (a linear axis,
+/// whose counts have no revolution to scale by, or no noise measured) gives the upper limit.
+pub fn default_cutoff(dt: f64, encoder_noise_rad: Option<f64>) -> f64 {
+    let hi = (0.1 / dt).min(MAX_DEFAULT_CUTOFF_HZ);
+    let lo = (MIN_DEFAULT_CUTOFF_RATE / dt).min(hi);
+    let Some(sigma) = encoder_noise_rad.filter(|s| s.is_finite() && *s > 0.0) else {
+        return hi;
+    };
+    let target = REFERENCE_ENCODER_NOISE_RAD * acceleration_noise_gain(REFERENCE_CUTOFF_HZ, 1e-3);
+    let noise = |fc: f64| sigma * acceleration_noise_gain(fc, dt);
+    if noise(hi) <= target {
+        return hi;
+    }
+    if noise(lo) >= target {
+        return lo;
+    }
+    // The gain rises with the cut-off: bisect on its logarithm to a tenth of a percent.
+    let (mut a, mut b) = (lo.ln(), hi.ln());
+    for _ in 0..24 {
+        let m = 0.5 * (a + b);
+        if noise(m.exp()) > target {
+            b = m;
+        } else {
+            a = m;
+        }
+    }
+    a.exp()
 }
 
 /// Samples to drop at each end for a cut-off `fc` at period `dt`.
@@ -133,10 +177,26 @@ mod tests {
     use super::*;
 
     #[test]
-    fn default_cutoff_is_a_tenth_of_the_rate_up_to_100_hz() {
-        assert_eq!(default_cutoff(1.0 / 250.0), 25.0);
-        assert_eq!(default_cutoff(1e-3), 100.0);
-        assert_eq!(default_cutoff(1.0 / 4000.0), 100.0);
+    fn default_cutoff_without_a_rotary_encoder_is_a_tenth_of_the_rate_up_to_100_hz() {
+        assert_eq!(default_cutoff(1.0 / 250.0, None), 25.0);
+        assert_eq!(default_cutoff(1e-3, None), 100.0);
+        assert_eq!(default_cutoff(1.0 / 4000.0, None), 100.0);
+    }
+
+    #[test]
+    fn default_cutoff_follows_the_encoder_noise() {
+        let count = |bits: i32| std::f64::consts::TAU / 2f64.powi(bits) / 12f64.sqrt();
+        // The reference encoder at the reference rate: the reference band.
+        let f16 = default_cutoff(1e-3, Some(count(16)));
+        assert!((f16 - 40.0).abs() < 0.5, "{f16}");
+        // Noise in the acceleration ∝ σ·f_c^2.5: four times the step, 4^-0.4 the band.
+        let f14 = default_cutoff(1e-3, Some(count(14)));
+        assert!((f14 / f16 - 0.25f64.powf(0.4)).abs() < 0.05, "{f14}");
+        // A fine encoder reaches the upper limit, a very coarse one the lower.
+        assert_eq!(default_cutoff(1e-3, Some(count(22))), 100.0);
+        assert_eq!(default_cutoff(1e-3, Some(count(4))), 5.0);
+        // More samples per second average more of the noise: a faster log's band is higher.
+        assert!(default_cutoff(2e-4, Some(count(16))) > f16 * 1.2);
     }
 
     #[test]

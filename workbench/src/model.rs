@@ -256,7 +256,15 @@ impl Model {
     pub fn fit_bounds(&self) -> Vec<(Option<f64>, Option<f64>)> {
         let phys = |kind: Option<EffectKind>, name: &str| -> (Option<f64>, Option<f64>) {
             match (kind, name) {
-                (None, _) => (Some(0.0), None),
+                // The rigid inertia, as the model file holds it (`[motor] inertia`): its
+                // declared lower limit is above 0, so a fit held there can still be written.
+                (None, _) => (
+                    sim_plant::model::sections::motor::PARAMS
+                        .iter()
+                        .find(|s| s.name == "inertia")
+                        .map_or(Some(0.0), |s| Some(s.min)),
+                    None,
+                ),
                 (Some(EffectKind::Quantization), "gain") => (None, None),
                 // The load inertia beyond a gap (`plant.output_inertia`) and −J2/J1 of a spring.
                 (Some(EffectKind::Backlash), "load_inertia") => (Some(0.0), None),

@@ -96,7 +96,11 @@ pub struct DataArgs {
     /// fitted. `compare` takes several (`--model a.toml --model b.toml`) and overlays them.
     #[arg(long)]
     pub model: Vec<PathBuf>,
-    /// Differentiator cut-off, Hz (default: a tenth of the sample rate, at most 100 Hz; a transmission mode above that needs a higher one).
+    /// Differentiator cut-off, Hz. Default: on a rotary axis, the band where the record's own
+    /// encoder noise reaches the acceleration as a 2¹⁶-count encoder's does at 40 Hz and
+    /// 1 kHz (23 Hz for 2¹⁴ counts at 1 kHz, 70 Hz for 2¹⁸), within a tenth of the sample rate
+    /// and 100 Hz; on a linear axis that upper limit. `diagnose` prints the band it used; a
+    /// transmission mode above it needs a higher one. A --validate file is read in the same band.
     #[arg(long)]
     pub cutoff: Option<f64>,
     /// What the input did between samples: `zoh` (a drive's log: position sampled when the
@@ -167,8 +171,9 @@ impl DataArgs {
     }
     /// A --validate recording: the whole file, no window, read with the recording's columns
     /// (or, for a dataset file, with its own, under the same flags). The recording itself,
-    /// unwindowed, is estimation data scored again, and the note says so.
-    fn validation(&self, file: &Path) -> anyhow::Result<Prepared> {
+    /// unwindowed, is estimation data scored again, and the note says so. It is
+    /// differentiated in the estimation record's band (`cutoff_hz`), so both are read alike.
+    fn validation(&self, file: &Path, cutoff_hz: f64) -> anyhow::Result<Prepared> {
         let d = self.dataset()?;
         let v = if dataset::is_dataset(file) {
             self.dataset_of(file)?
@@ -186,7 +191,7 @@ impl DataArgs {
             );
         }
         let cols = v.columns(&v.file, false)?;
-        load_prepared(&v.file, &cols, self.cutoff).map(|(p, _)| p)
+        load_prepared(&v.file, &cols, Some(cutoff_hz)).map(|(p, _)| p)
     }
     /// The recording (inside the --from/--to window), and how it was resampled.
     fn recording(&self) -> anyhow::Result<(Prepared, Option<Resampled>)> {
@@ -803,7 +808,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
     }
     let save = model_path(a.save_model.as_ref(), "auto-model");
     let val = match a.data.validate_file(a.validate.as_ref())? {
-        Some(f) => Some(a.data.validation(&f)?),
+        Some(f) => Some(a.data.validation(&f, p.cutoff_hz)?),
         None => None,
     };
     // Each step refits its leading candidates in full (minutes on a long record): a spinner
@@ -1090,7 +1095,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
         None => None,
     };
     let val = match a.data.validate_file(a.validate.as_ref())? {
-        Some(f) => Some(a.data.validation(&f)?),
+        Some(f) => Some(a.data.validation(&f, p.cutoff_hz)?),
         None => None,
     };
     // A model file's own values, scored before `fit` refits them: "before" is the model

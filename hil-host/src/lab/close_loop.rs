@@ -407,7 +407,12 @@ pub fn run_all(
         None => {
             progress("diagnose --auto: which effects the recording needs");
             let rec = data::load(&csv, &Columns::new("torque_cmd_Nm", "motor_pos_rad"))?;
-            let p = Prepared::checked(&rec, None).map_err(|e| anyhow!("{e:?}"))?;
+            // Identified in the card's velocity-observer band, the band the compensation will
+            // act in: the card's 2304-count encoder would set a 10 Hz default, where a
+            // friction sign taken from the filtered velocity of a 2 Hz chirp is no longer the
+            // sign the card switches on (the fitted levels then compensate worse).
+            let band = controller::card::config::OBSERVER_BANDWIDTH_HZ;
+            let p = Prepared::checked(&rec, Some(band)).map_err(|e| anyhow!("{e:?}"))?;
             let mut wb = WbModel::baseline();
             wb.on_axis(p.axis, &p.input_unit)?;
             let auto = refine::auto(&mut wb, &p, None, &Options::default(), 6)?;

@@ -85,16 +85,6 @@ pub fn conditions(seed: u64, logging: Logging) -> Conditions {
     }
 }
 
-/// The differentiator cut-off a user would give the workbench for a record at `dt` from an
-/// encoder of `counts_per_rev`: 40 Hz for 2¹⁶ counts, scaled so that the encoder's noise in
-/// the acceleration (∝ step·f_c^2.5) stays at that level, at most a tenth of the sample rate
-/// and 100 Hz. The referee judges in the same band.
-pub fn cutoff(dt: f64, counts_per_rev: f64) -> f64 {
-    (40.0 * (counts_per_rev / 65_536.0).powf(0.4))
-        .min(0.1 / dt)
-        .min(100.0)
-}
-
 /// Why a draw does not count: from the truth, never from the workbench.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Skip {
@@ -204,9 +194,10 @@ pub fn generate_in(
             .record(seed, effects, &cond, which)
             .map_err(Skip::Diverged)
     };
-    // The cut-off follows the rate the truth actually records at.
+    // The band is the workbench's default for the record without the hidden effect (its
+    // encoder and rate); the referee judges in it, and the workbench is given it.
     let probe = rec(&[], Which::Estimation)?;
-    let fc = cutoff(probe.dt, cond.counts_per_rev);
+    let fc = Prepared::default_cutoff(&recording(&probe, cond.logging, false, "probe"));
     // What the start model (with `also`) cannot explain of the joint without `of` (N·m, on
     // `which`); a truth that cannot be measured makes the draw not count, as a ρ that is not
     // finite does.

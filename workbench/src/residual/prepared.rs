@@ -236,17 +236,11 @@ impl Prepared {
         Ok(p)
     }
 
-    /// Differentiate a recording (cut-off `cutoff_hz`, default a tenth of the sample rate, at most 100 Hz).
+    /// Differentiate a recording (cut-off `cutoff_hz`; by default the band where the
+    /// record's own encoder noise reaches the acceleration at a set level, see
+    /// [`diff::default_cutoff`]).
     /// Does not check the result's range: see [`Prepared::checked`].
     pub fn new(rec: &Recording, cutoff_hz: Option<f64>) -> Self {
-        let fc = cutoff_hz.unwrap_or_else(|| diff::default_cutoff(rec.dt));
-        let d = diff::differentiate(&rec.output, rec.dt, fc);
-        let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
-        let r = e..rec.len() - e;
-        // The input at the position's sample instants (a drive's hold lags it half a sample),
-        // then the parallel filter.
-        let intersample = rec.columns.intersample;
-        let uf = intersample.band_limited(&rec.input, fc, 1.0 / rec.dt);
         // Noise is measured on the samples as recorded: a resampled record's interpolation
         // averages neighbours and would hide the encoder's step and part of the noise (on
         // the XL330 logs the step would read 40–500× finer than one count).
@@ -254,10 +248,19 @@ impl Prepared {
             Some(r) => (&r.input, &r.output, r.load_output.as_ref()),
             None => (&rec.input, &rec.output, rec.load_output.as_ref()),
         };
+        let position_noise_var = position_noise_variance(raw_output);
+        let axis = sim_plant::units::Axis::of_position_unit(&rec.units.1);
+        let fc = cutoff_hz.unwrap_or_else(|| band(rec.dt, axis, position_noise_var));
+        let d = diff::differentiate(&rec.output, rec.dt, fc);
+        let e = diff::edge_samples(rec.dt, fc).min(rec.len() / 4);
+        let r = e..rec.len() - e;
+        // The input at the position's sample instants (a drive's hold lags it half a sample),
+        // then the parallel filter.
+        let intersample = rec.columns.intersample;
+        let uf = intersample.band_limited(&rec.input, fc, 1.0 / rec.dt);
         let input_sigma = super::super::stats::noise_floor(raw_input);
         let floor = input_sigma * diff::noise_gain(fc, 1.0 / rec.dt);
         let acc_gain2 = diff::acceleration_noise_gain(fc, rec.dt).powi(2);
-        let position_noise_var = position_noise_variance(raw_output);
         let acceleration_noise_var = position_noise_var * acc_gain2;
         // A load column of another length is not the same record's: ignored rather than
         // misaligned (`data::load` reads both from one file, so only a hand-built recording
@@ -291,7 +294,7 @@ impl Prepared {
             position_noise_var,
             acceleration_noise_var,
             load_position,
-            axis: sim_plant::units::Axis::of_position_unit(&rec.units.1),
+            axis,
             input_unit: crate::data::input_unit(&rec.columns),
             load_acceleration_noise_var,
             intersample,
@@ -305,6 +308,14 @@ impl Prepared {
         p.input_probe =
             noise_probe(rec.len(), e, rec.dt, fc, Impulse::Input(intersample)).map(Box::new);
         p
+    }
+
+    /// The cut-off [`Prepared::new`] uses for `rec` when none is given: see
+    /// [`diff::default_cutoff`].
+    pub fn default_cutoff(rec: &Recording) -> f64 {
+        let raw_output = rec.recorded.as_ref().map_or(&rec.output, |r| &r.output);
+        let axis = sim_plant::units::Axis::of_position_unit(&rec.units.1);
+        band(rec.dt, axis, position_noise_variance(raw_output))
     }
 
     /// The same record read with another intersample behaviour: the input (and the
@@ -364,6 +375,14 @@ impl Prepared {
     pub fn is_empty(&self) -> bool {
         self.time.is_empty()
     }
+}
+
+/// The default band of a record at period `dt` on `axis` whose position noise variance is
+/// `noise_var`: scaled by the encoder's noise on a rotary axis (in rad); a linear axis's
+/// counts have no revolution to compare with the reference encoder.
+fn band(dt: f64, axis: sim_plant::units::Axis, noise_var: f64) -> f64 {
+    let rotary = (axis == sim_plant::units::Axis::Rotary).then(|| noise_var.sqrt());
+    diff::default_cutoff(dt, rotary)
 }
 
 /// Samples between the window's start and the probe's impulse: the zero-phase
