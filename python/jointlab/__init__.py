@@ -127,6 +127,7 @@ class Diagnosis:
 
     residual_mode: str
     intersample: str
+    cutoff_hz: float  # the differentiator's band (Hz): ``cutoff``, or the record's default
     baseline: Baseline
     candidates: list
     verdict: Verdict
