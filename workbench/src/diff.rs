@@ -8,7 +8,8 @@
 //! effect in the residual); and its cut-off is one number a user can reason about (keep it
 //! above the motion bandwidth and below where encoder quantisation noise dominates). The
 //! default cut-off follows the record's own encoder noise ([`default_cutoff`]), within a
-//! tenth of the sample rate and 100 Hz. Because a forward–backward filter rings at the ends, [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
+//! tenth of the sample rate and 100 Hz. Because a forward–backward filter rings at the ends,
+//! [`EDGE_CUTOFF_PERIODS`] cut-off periods are dropped from each end.
 //!
 //! Five points rather than three: the three-point second difference reads an acceleration at
 //! a tenth of the sample rate (the default band's edge) 3.3 % low, (ω·dt)²/12, and a joint's
