@@ -117,6 +117,17 @@ fn bad_input_gets_a_clear_error() {
         .collect();
     std::fs::write(&rec, format!("time_s,u_Nm,x_rad\n{rows}")).unwrap();
     let rec = rec.to_str().unwrap();
+    // The same motion logged at 100 Hz: a validation record that cannot carry the
+    // estimation record's default band (100 Hz for a noise-free position at 1 kHz).
+    let slow = std::env::temp_dir().join(format!("jointlab-cli-slow-{}.csv", std::process::id()));
+    let rows: String = (0..100)
+        .map(|k| {
+            let t = k as f64 * 1e-2;
+            format!("{t},{},{}\n", (10.0 * t).sin(), (10.0 * t).cos())
+        })
+        .collect();
+    std::fs::write(&slow, format!("time_s,u_Nm,x_rad\n{rows}")).unwrap();
+    let slow = slow.to_str().unwrap();
     for args in [
         &["compare", "/nonexistent/rec.csv"][..],
         &[
@@ -141,11 +152,43 @@ fn bad_input_gets_a_clear_error() {
         (&["diagnose", rec, "--cutoff", "600"][..], "Nyquist"),
         (&["compare", rec, "--period", "0"][..], "above 0"),
         (&["diagnose", rec, "--validate", rec][..], "--auto"),
+        (
+            &["fit", rec, "--validate", slow][..],
+            "is read in by default (100.0000 Hz",
+        ),
+        (
+            &["fit", rec, "--validate", slow][..],
+            "pass a cut-off below 50.0000 Hz",
+        ),
+        (
+            &["fit", rec, "--validate", slow, "--cutoff", "60"][..],
+            "--cutoff 60: ",
+        ),
     ] {
         let e = run(&[args, &io[..]].concat());
         assert!(e.contains(what), "{args:?}: {e}");
     }
+    // The band named reads both records.
+    let saved = std::env::temp_dir().join(format!("jointlab-cli-slow-{}.toml", std::process::id()));
+    let o = hil()
+        .args([
+            "fit",
+            rec,
+            "--validate",
+            slow,
+            "--cutoff",
+            "20",
+            "--json",
+            "--save-model",
+        ])
+        .arg(&saved)
+        .args(io)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = std::fs::remove_file(saved);
     let _ = std::fs::remove_file(rec);
+    let _ = std::fs::remove_file(slow);
 }
 
 /// In real time the report carries the plant's tick lateness (p50, p99, max) and says

@@ -391,10 +391,26 @@ impl Recording {
 /// The recording differentiated, with the CLI's checks: a cut-off the record cannot carry
 /// is a bad argument, a signal out of range after differentiation a [`DataError`].
 fn prepared(rec: &Recording, cutoff: Option<f64>) -> PyResult<Prepared> {
-    Prepared::checked(&rec.inner, cutoff).map_err(|e| match e {
+    Prepared::checked(&rec.inner, cutoff).map_err(prepare_error)
+}
+
+/// A validation recording, read in the estimation's band `band` (its default when `cutoff`,
+/// the caller's, is `None`).
+fn validation(
+    val: &Recording,
+    est: &Recording,
+    band: f64,
+    cutoff: Option<f64>,
+) -> PyResult<Prepared> {
+    let default_of = cutoff.is_none().then_some(est.inner.path.as_path());
+    Prepared::checked_in_band(&val.inner, band, default_of).map_err(prepare_error)
+}
+
+fn prepare_error(e: PrepareError) -> PyErr {
+    match e {
         PrepareError::Cutoff(e) => value_error(e),
         PrepareError::Data(e) => data_error(e),
-    })
+    }
 }
 
 /// A [`FitError`] unless the score's fit % and RMS are finite (a NaN score would read as
@@ -476,7 +492,7 @@ fn py_auto(
         let p = prepared(rec, cutoff)?;
         let mut m = fitted(rec, model, &p)?;
         let val = validate
-            .map(|v| prepared(v, Some(p.cutoff_hz)))
+            .map(|v| validation(v, rec, p.cutoff_hz, cutoff))
             .transpose()?;
         let run = refine::auto(&mut m, &p, val.as_ref(), &opts, max_steps)
             .map_err(|e| fit_error("", e))?;
@@ -522,7 +538,7 @@ fn py_fit(
         let p = prepared(rec, cutoff)?;
         m.on_axis(p.axis, &p.input_unit).map_err(model_error)?;
         let val = validate
-            .map(|v| prepared(v, Some(p.cutoff_hz)))
+            .map(|v| validation(v, rec, p.cutoff_hz, cutoff))
             .transpose()?;
         let as_given = model.map(|_| {
             json!({

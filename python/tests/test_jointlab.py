@@ -275,6 +275,13 @@ def test_bad_input_raises_the_error_of_its_kind_naming_it():
         jointlab.diagnose(t, u, q, input_gain=0.0)
     with usage_error(r"--cutoff 600: .*Nyquist"):
         jointlab.diagnose(t, u, q, cutoff=600.0)
+    # A validation record sampled too slowly for the estimation record's default band (a
+    # linear axis at 1 kHz: 100 Hz), and the cut-off that reads both.
+    tl, ul, ql = synthetic(3000)
+    slow = (tl[::20], ul[::20], ql[::20])
+    with usage_error(r"Nyquist frequency \(25\.0000 Hz\) is below .* pass a cut-off below 25\.0000 Hz"):
+        jointlab.fit(tl, ul, ql, validate=slow)
+    assert jointlab.fit(tl, ul, ql, validate=slow, cutoff=10.0).report.after_validation is not None
     with usage_error(r"intersample=\"hold\""):
         jointlab.diagnose(t, u, q, intersample="hold")
     # A model file or text: ModelError, naming it and the line.

@@ -191,7 +191,11 @@ impl DataArgs {
             );
         }
         let cols = v.columns(&v.file, false)?;
-        load_prepared(&v.file, &cols, Some(cutoff_hz)).map(|(p, _)| p)
+        let default_of = self.cutoff.is_none().then_some(d.file.as_path());
+        load_in(&v.file, &cols, |rec| {
+            Prepared::checked_in_band(rec, cutoff_hz, default_of)
+        })
+        .map(|(p, _)| p)
     }
     /// The recording (inside the --from/--to window), and how it was resampled.
     fn recording(&self) -> anyhow::Result<(Prepared, Option<Resampled>)> {
@@ -262,6 +266,16 @@ fn load_prepared(
     cols: &Columns,
     cutoff: Option<f64>,
 ) -> anyhow::Result<(Prepared, Option<Resampled>)> {
+    load_in(file, cols, |rec| Prepared::checked(rec, cutoff))
+}
+
+/// [`load_prepared`] with the preparation `prepare` (a validation record's is in the
+/// estimation record's band).
+fn load_in(
+    file: &Path,
+    cols: &Columns,
+    prepare: impl FnOnce(&data::Recording) -> Result<Prepared, PrepareError>,
+) -> anyhow::Result<(Prepared, Option<Resampled>)> {
     let rec = data::load(file, cols)?;
     // On stderr: `--json` keeps exactly one object on stdout.
     if cols.window.is_some() {
@@ -278,7 +292,7 @@ fn load_prepared(
     }
     // A cut-off the record cannot carry is the command's fault (exit 2), a signal out of
     // range the data's (exit 1): see `exit_code`.
-    let p = Prepared::checked(&rec, cutoff).map_err(|e| match e {
+    let p = prepare(&rec).map_err(|e| match e {
         PrepareError::Cutoff(e) => anyhow::Error::new(e),
         PrepareError::Data(e) => anyhow::Error::new(e),
     })?;

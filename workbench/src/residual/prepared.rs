@@ -105,11 +105,7 @@ pub struct Prepared {
 
 /// A differentiator cut-off the record cannot carry ([`Prepared::checked`]).
 #[derive(Debug, thiserror::Error)]
-#[error(
-    "--cutoff {cutoff}: the differentiator's cut-off must be above 0 and below the Nyquist \
-     frequency of {} ({nyquist:.4} Hz)",
-    file.display()
-)]
+#[error("{}", self.message())]
 pub struct CutoffError {
     /// The record's file (or [`crate::data::ARRAYS`]).
     pub file: std::path::PathBuf,
@@ -117,6 +113,30 @@ pub struct CutoffError {
     pub cutoff: f64,
     /// The record's Nyquist frequency (Hz).
     pub nyquist: f64,
+    /// When the caller did not choose the cut-off: the estimation record whose default band
+    /// this (validation) record was to be read in ([`Prepared::checked_in_band`]).
+    pub default_of: Option<std::path::PathBuf>,
+}
+
+impl CutoffError {
+    fn message(&self) -> String {
+        let (file, nyquist) = (self.file.display(), self.nyquist);
+        match &self.default_of {
+            None => format!(
+                "--cutoff {}: the differentiator's cut-off must be above 0 and below the \
+                 Nyquist frequency of {file} ({nyquist:.4} Hz)",
+                self.cutoff
+            ),
+            Some(est) => format!(
+                "{file}: its Nyquist frequency ({nyquist:.4} Hz) is below the band the \
+                 estimation record {} is read in by default ({:.4} Hz, set by its encoder and \
+                 sample rate), and a validation record is read in the estimation record's \
+                 band: pass a cut-off below {nyquist:.4} Hz (--cutoff, or cutoff= in Python)",
+                est.display(),
+                self.cutoff
+            ),
+        }
+    }
 }
 
 /// Why [`Prepared::checked`] refused a record. Two kinds, kept apart because a caller reports
@@ -178,6 +198,7 @@ impl Prepared {
                     file: rec.path.clone(),
                     cutoff,
                     nyquist,
+                    default_of: None,
                 }));
             }
         }
@@ -234,6 +255,24 @@ impl Prepared {
             }
         }
         Ok(p)
+    }
+
+    /// [`Prepared::checked`] of a validation record in the estimation record's band `band`:
+    /// both are read alike. `default_of` names the estimation record when the band is its
+    /// default rather than the caller's choice, so a band the validation record cannot carry
+    /// (sampled slower) is reported as that, with the cut-off to pass.
+    pub fn checked_in_band(
+        rec: &Recording,
+        band: f64,
+        default_of: Option<&std::path::Path>,
+    ) -> Result<Self, PrepareError> {
+        Self::checked(rec, Some(band)).map_err(|e| match e {
+            PrepareError::Cutoff(c) => PrepareError::Cutoff(CutoffError {
+                default_of: default_of.map(std::path::Path::to_path_buf),
+                ..c
+            }),
+            e => e,
+        })
     }
 
     /// Differentiate a recording (cut-off `cutoff_hz`; by default the band where the
