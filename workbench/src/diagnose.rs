@@ -45,7 +45,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use sim_plant::effects::{compliance, resolved, shape_search, EffectKind, Shape, Trajectory};
 
-use super::fit::{self, gram, gram_inverse};
+use super::fit::{self, cross_sums, gram, gram_inverse};
 use super::metrics::Score;
 use super::model::Model;
 use super::residual::{self, Prepared};
@@ -367,15 +367,14 @@ fn delta_rss_signed(
 ) -> (f64, f64) {
     let q = z.len();
     let p = x0.len();
-    let zx = DMatrix::from_fn(q, p, |i, j| {
-        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
-    });
+    // Row i: z[i]·x0[0], …, z[i]·x0[p−1], z[i]·e.
+    let with: Vec<&[f64]> = x0.iter().map(Vec::as_slice).chain([e]).collect();
+    let cross: Vec<Vec<f64>> = z.iter().map(|c| cross_sums(c, &with)).collect();
+    let zx = DMatrix::from_fn(q, p, |i, j| cross[i][j]);
     let zz = gram(z);
     let ze = DVector::from_iterator(
         q,
-        z.iter().enumerate().map(|(i, c)| {
-            c.iter().zip(e).map(|(a, b)| a * b).sum::<f64>() - bias.get(i).map_or(0.0, |b| b.cross)
-        }),
+        (0..q).map(|i| cross[i][p] - bias.get(i).map_or(0.0, |b| b.cross)),
     );
     let mut zt = &zz - &zx * g0i * zx.transpose();
     // The column's own noise energy, off its diagonal (capped at half: the refit's rule).
@@ -401,9 +400,9 @@ fn contribution(z: &[Vec<f64>], x0: &[Vec<f64>], g0i: &DMatrix<f64>, e: &[f64]) 
     let n = e.len();
     let q = z.len();
     let p = x0.len();
-    let zx = DMatrix::from_fn(q, p, |i, j| {
-        z[i].iter().zip(&x0[j]).map(|(a, b)| a * b).sum::<f64>()
-    });
+    let with: Vec<&[f64]> = x0.iter().map(Vec::as_slice).collect();
+    let cross: Vec<Vec<f64>> = z.iter().map(|c| cross_sums(c, &with)).collect();
+    let zx = DMatrix::from_fn(q, p, |i, j| cross[i][j]);
     let b = g0i * zx.transpose(); // p×q
     let zt: Vec<Vec<f64>> = (0..q)
         .map(|i| {

@@ -109,6 +109,26 @@ pub enum FitError {
 use sim_plant::lstsq::inverse_sqrt_diagonal;
 pub use sim_plant::lstsq::{gram, gram_inverse};
 
+/// `Σₖ a[k]·b[k]` for each `b` in `bs`, each as `Iterator::sum` over the pair's common length
+/// (in row order, from −0), to the bit. When all have `a`'s length the sums share one pass
+/// over the rows, their chains of dependent additions overlapping: a candidate's cross
+/// products with the model's columns are much of a shape search's time.
+pub fn cross_sums(a: &[f64], bs: &[&[f64]]) -> Vec<f64> {
+    if bs.iter().any(|b| b.len() != a.len()) {
+        return bs
+            .iter()
+            .map(|b| a.iter().zip(*b).map(|(x, y)| x * y).sum())
+            .collect();
+    }
+    let mut s = vec![-0.0; bs.len()];
+    for (k, x) in a.iter().enumerate() {
+        for (sj, b) in s.iter_mut().zip(bs) {
+            *sj += x * b[k];
+        }
+    }
+    s
+}
+
 /// Batch-means sandwich covariance for regressors `cols` and residual `e`.
 pub fn batch_covariance(
     cols: &[Vec<f64>],
@@ -119,12 +139,10 @@ pub fn batch_covariance(
     let p = cols.len();
     let m = BLOCKS.min(n / 20).max(2);
     let mut omega = DMatrix::<f64>::zeros(p, p);
-    let mut s = vec![0.0; p];
     for b in 0..m {
         let (lo, hi) = (b * n / m, (b + 1) * n / m);
-        for (j, c) in cols.iter().enumerate() {
-            s[j] = c[lo..hi].iter().zip(&e[lo..hi]).map(|(x, r)| x * r).sum();
-        }
+        let batch: Vec<&[f64]> = cols.iter().map(|c| &c[lo..hi]).collect();
+        let s = cross_sums(&e[lo..hi], &batch);
         for i in 0..p {
             for j in 0..p {
                 omega[(i, j)] += s[i] * s[j];
@@ -397,6 +415,66 @@ pub fn levenberg_marquardt<F: Fn(&[f64]) -> Vec<f64>>(f: F, x0: &[f64], max_iter
 #[cfg(test)]
 mod tests {
     use super::*;
+    /// The cross products in one pass are the plain sums, to the bit (equal lengths), and
+    /// the plain sums over each pair's common length otherwise.
+    #[test]
+    fn cross_sums_are_the_plain_sums_to_the_bit() {
+        let a: Vec<f64> = (0..1001).map(|k| (k as f64 * 0.37).sin()).collect();
+        let b: Vec<f64> = (0..1001)
+            .map(|k| ((k * 7 % 11) as f64 - 5.0) * 0.3)
+            .collect();
+        let c: Vec<f64> = (0..1001).map(|k| (k as f64).sqrt()).collect();
+        let plain = |x: &[f64], y: &[f64]| -> f64 { x.iter().zip(y).map(|(p, q)| p * q).sum() };
+        // Signed zeros too: a zero column against negative values.
+        let (zeros, minus) = (vec![0.0; 1001], vec![-1.0; 1001]);
+        let got = cross_sums(&zeros, &[&minus, &b]);
+        assert_eq!(got[0].to_bits(), plain(&zeros, &minus).to_bits());
+        assert_eq!(got[1].to_bits(), plain(&zeros, &b).to_bits());
+        let got = cross_sums(&a, &[&b, &c, &a]);
+        for (g, y) in got.iter().zip([&b, &c, &a]) {
+            assert_eq!(g.to_bits(), plain(&a, y).to_bits());
+        }
+        let got = cross_sums(&a, &[&b[..500], &c]);
+        assert_eq!(got[0].to_bits(), plain(&a, &b[..500]).to_bits());
+        assert_eq!(got[1].to_bits(), plain(&a, &c).to_bits());
+    }
+
+    /// The batch sums, taken column by column with `Iterator::sum` over each batch: the
+    /// covariance is the same to the bit however the loop is arranged.
+    #[test]
+    fn batch_sums_are_the_plain_sums_to_the_bit() {
+        let n = 1003;
+        let e: Vec<f64> = (0..n)
+            .map(|k| ((k * 37 % 101) as f64 - 50.0) * 1e-3)
+            .collect();
+        let cols: Vec<Vec<f64>> = vec![
+            (0..n).map(|k| (k as f64 * 0.01).sin()).collect(),
+            vec![0.0; n],
+            (0..n).map(|k| ((k % 13) as f64).sqrt() - 1.7).collect(),
+        ];
+        let ginv = gram_inverse(&gram(&cols));
+        let (cov, m) = batch_covariance(&cols, &e, &ginv);
+        let p = cols.len();
+        let mut omega = DMatrix::<f64>::zeros(p, p);
+        for b in 0..m {
+            let (lo, hi) = (b * n / m, (b + 1) * n / m);
+            let s: Vec<f64> = cols
+                .iter()
+                .map(|c| c[lo..hi].iter().zip(&e[lo..hi]).map(|(x, r)| x * r).sum())
+                .collect();
+            for i in 0..p {
+                for j in 0..p {
+                    omega[(i, j)] += s[i] * s[j];
+                }
+            }
+        }
+        omega *= m as f64 / (m - 1) as f64;
+        let reference = &ginv * omega * &ginv;
+        assert!(cov
+            .iter()
+            .zip(reference.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
 
     #[test]
     fn ls_recovers_coefficients() {

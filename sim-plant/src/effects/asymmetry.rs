@@ -51,17 +51,12 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let v = &traj.velocity[..n];
     let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     let vh = shape.stick_velocity;
+    let w = super::stribeck::stick_weights(traj, vh);
     vec![
         v.iter()
             .zip(&traj.acceleration[..n])
-            .map(|(&v, &a)| {
-                let step = 0.5 * (1.0 + smooth_sign(v + lead * a, eps));
-                if vh > 0.0 {
-                    (1.0 - super::stribeck::stick_window_mean(v, a, traj.dt, vh)) * step
-                } else {
-                    step
-                }
-            })
+            .zip(&w)
+            .map(|((&v, &a), w)| (1.0 - w) * (0.5 * (1.0 + smooth_sign(v + lead * a, eps))))
             .collect(),
         v.iter().map(|&v| v.max(0.0)).collect(),
     ]

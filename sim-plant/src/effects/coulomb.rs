@@ -51,17 +51,12 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     let n = traj.len();
     let vh = shape.stick_velocity;
+    let w = super::stribeck::stick_weights(traj, vh);
     vec![traj.velocity[..n]
         .iter()
         .zip(&traj.acceleration[..n])
-        .map(|(&v, &a)| {
-            let s = smooth_sign(v + lead * a, eps);
-            if vh > 0.0 {
-                (1.0 - super::stribeck::stick_window_mean(v, a, traj.dt, vh)) * s
-            } else {
-                s
-            }
-        })
+        .zip(&w)
+        .map(|((&v, &a), w)| (1.0 - w) * smooth_sign(v + lead * a, eps))
         .collect()]
 }
 

@@ -159,11 +159,7 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     if vh <= 0.0 {
         return vec![slip.collect()];
     }
-    let w: Vec<f64> = v
-        .iter()
-        .zip(a)
-        .map(|(&v, &a)| stick_window_mean(v, a, traj.dt, vh))
-        .collect();
+    let w = stick_weights(traj, vh);
     // d/d|v| exp(−x^δ), x = |v|/vs: −(δ/vs)·x^(δ−1)·exp(−x^δ).
     let de = |v: f64| {
         let x = v.abs() / vs;
@@ -178,6 +174,20 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
             .collect(),
         w.iter().zip(u).map(|(w, u)| w * u).collect(),
     ]
+}
+
+/// The stick window's weight at each sample of `traj` (all 0 for `vh` ≤ 0, no window):
+/// [`stick_window_mean`] of the measured motion.
+pub fn stick_weights(traj: &Trajectory, vh: f64) -> Vec<f64> {
+    let n = traj.len();
+    if vh <= 0.0 {
+        return vec![0.0; n];
+    }
+    traj.velocity[..n]
+        .iter()
+        .zip(&traj.acceleration[..n])
+        .map(|(&v, &a)| stick_window_mean(v, a, traj.dt, vh))
+        .collect()
 }
 
 /// Weight of "stuck" at measured velocity `v`: exp(−(v/vh)⁴), ≈ 1 for |v| < vh/2 (the

@@ -169,9 +169,9 @@ fn dry_friction(kind: EffectKind) -> bool {
 /// The stick state of a model with dry friction: a joint at rest is held by static friction,
 /// which is a reaction — it takes whatever value balances the rest of the torque, up to the
 /// breakaway level (Coulomb + Stribeck excess) — not `τc·sign(v)` of a velocity that is only
-/// sensor noise there. Where the measured speed is within the noise of rest
-/// (`Prepared::stick_velocity`) the prediction's dry friction is the balancing torque clipped
-/// to the breakaway level, as in the simulator's stick state: exact when it balances, the
+/// sensor noise there. Where the joint is at rest by the measurement ([`at_rest`]: the speed
+/// within the noise of rest, or the encoder's count held) the prediction's dry friction is the
+/// balancing torque clipped to the breakaway level, as in the simulator's stick state: exact when it balances, the
 /// excess when the joint should have broken away.
 #[derive(Debug, Clone)]
 pub struct StaticFriction {
@@ -189,17 +189,14 @@ impl StaticFriction {
     /// reward a larger level with fewer rows to explain (a Coulomb term would grow to cover a
     /// Stribeck excess at rest).
     fn stuck(&self, p: &Prepared) -> Vec<bool> {
-        p.velocity
-            .iter()
-            .map(|v| v.abs() < p.stick_velocity)
-            .collect()
+        (0..p.len()).map(|k| at_rest(p, k)).collect()
     }
 
     /// The prediction with the stick state.
     fn predict(&self, p: &Prepared) -> Vec<f64> {
         (0..p.len())
             .map(|k| {
-                let f = if p.velocity[k].abs() < p.stick_velocity {
+                let f = if at_rest(p, k) {
                     (p.input[k] - self.rest[k]).clamp(-self.limit, self.limit)
                 } else {
                     self.sliding[k]
@@ -208,6 +205,16 @@ impl StaticFriction {
             })
             .collect()
     }
+}
+
+/// Whether the joint is at rest at sample `k`, as far as the measurement tells: its measured
+/// speed is within the noise of rest, or its encoder held the count for as long as a joint at
+/// that speed takes to move one (`Prepared::held`). The second matters at a breakaway or a
+/// stop: the zero-phase differentiator spreads the motion over its support, both ways, and on
+/// the samples before a breakaway it reads a speed — often backwards — the encoder never
+/// saw, where the sliding law then predicts friction of the wrong sign.
+fn at_rest(p: &Prepared, k: usize) -> bool {
+    p.velocity[k].abs() < p.stick_velocity || p.held.get(k).copied().unwrap_or(false)
 }
 
 /// [`StaticFriction`] of a model from its columns (`None` without Coulomb friction, or for
@@ -579,6 +586,63 @@ mod tests {
         let sd = noise_energy_sd(&h, 1.0, 1000);
         assert!((sd / want - 1.0).abs() < 1e-6, "{sd} vs {want}");
         assert_eq!(noise_energy_sd(&[0.0; 8], 1.0, 100), 0.0);
+    }
+
+    /// Before a breakaway the zero-phase differentiator reads motion on samples at which the
+    /// encoder never moved; the encoder's held count makes them rest, where the prediction's
+    /// dry friction is the balancing torque (the input itself, below breakaway) rather than
+    /// a sliding friction of whatever sign the smeared speed has.
+    #[test]
+    fn a_held_count_is_rest_before_a_breakaway() {
+        let (n, dt, brk): (usize, f64, usize) = (2000, 1e-3, 1000);
+        let count = std::f64::consts::TAU / 65536.0;
+        let output: Vec<f64> = (0..n)
+            .map(|k| match k.checked_sub(brk) {
+                None | Some(0) => 0.0,
+                Some(j) => (j as f64 * dt * 0.5 / count).floor() * count,
+            })
+            .collect();
+        let rec = Recording {
+            path: "synthetic".into(),
+            time: (0..n).map(|k| k as f64 * dt).collect(),
+            input: (0..n)
+                .map(|k| {
+                    if k < brk {
+                        0.05 * k as f64 / brk as f64
+                    } else {
+                        0.12
+                    }
+                })
+                .collect(),
+            output,
+            load_output: None,
+            dt,
+            units: ("N·m".into(), "rad".into()),
+            columns: crate::data::Columns::new("u", "q"),
+            resampled: None,
+            recorded: None,
+        };
+        let p = Prepared::new(&rec, Some(40.0));
+        let smeared: Vec<usize> = (0..p.len())
+            .filter(|&k| p.held[k] && p.velocity[k].abs() >= p.stick_velocity)
+            .collect();
+        assert!(smeared.len() >= 3, "{smeared:?}");
+        let mut m = Model::baseline();
+        m.add(EffectKind::Coulomb, Shape::default());
+        for (q, v) in m.params_mut().into_iter().zip([1e-3, 0.0, 0.1]) {
+            q.value = v;
+        }
+        let u = predict(&m, &p);
+        for k in smeared {
+            assert!(
+                (u[k] - p.input[k]).abs() < 1e-12,
+                "{k}: {} vs {}",
+                u[k],
+                p.input[k]
+            );
+        }
+        // The moving samples are not rest.
+        assert!((0..p.len()).any(|k| !p.held[k] && !at_rest(&p, k)));
     }
 
     /// The noise matrix of the baseline model: the inertia's diagonal is the acceleration

@@ -31,6 +31,11 @@ pub struct Prepared {
     pub noise_floor: f64,
     /// Measured (raw) position.
     pub raw_position: Vec<f64>,
+    /// Samples in a run of equal recorded positions long enough that a joint moving at
+    /// [`Prepared::stick_velocity`] would have changed the count: the encoder's own evidence
+    /// of rest, which the smoothed velocity blurs (see `residual::design::at_rest`). Empty
+    /// for a probe.
+    pub held: Vec<bool>,
     /// Acceleration over the whole record (edges included, indexed as `raw_input`): dynamic
     /// fingerprints of the motion filter it from the record's start (see
     /// `sim_plant::effects::Trajectory::raw_acceleration`).
@@ -315,6 +320,7 @@ impl Prepared {
             ),
             None => (Vec::new(), 0.0),
         };
+        let step_peak = diff::step_velocity_peak(fc, rec.dt);
         let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
             input: uf[r.clone()].to_vec(),
@@ -322,6 +328,7 @@ impl Prepared {
             raw_offset: e,
             noise_floor: floor,
             raw_position: rec.output[r.clone()].to_vec(),
+            held: Vec::new(),
             position: d.position[r.clone()].to_vec(),
             velocity: d.velocity[r.clone()].to_vec(),
             acceleration: d.acceleration[r].to_vec(),
@@ -329,7 +336,7 @@ impl Prepared {
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
-            stick_velocity: quantisation_step(raw_output) * diff::step_velocity_peak(fc, rec.dt),
+            stick_velocity: quantisation_step(raw_output) * step_peak,
             position_noise_var,
             acceleration_noise_var,
             load_position,
@@ -342,6 +349,7 @@ impl Prepared {
             input_noise_var: input_sigma * input_sigma,
             noise_probe: None,
         };
+        p.held = held(&p.raw_position, rest_run(step_peak, rec.dt));
         p.input_instrument = instrument(&p);
         p.noise_probe = noise_probe(rec.len(), e, rec.dt, fc, Impulse::Position).map(Box::new);
         p.input_probe =
@@ -474,6 +482,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         raw_offset: edge,
         noise_floor: 0.0,
         raw_position: x[r.clone()].to_vec(),
+        held: Vec::new(),
         position: d.position[r.clone()].to_vec(),
         velocity: d.velocity[r.clone()].to_vec(),
         acceleration: d.acceleration[r].to_vec(),
@@ -494,6 +503,35 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         input_noise_var: 0.0,
         noise_probe: None,
     })
+}
+
+/// The shortest run of equal position samples that means rest by the encoder alone: a joint
+/// moving at [`Prepared::stick_velocity`] (one count's peak speed through the differentiator,
+/// `step_peak` counts per second) moves a count within `run − 1` sample periods. So a run this
+/// long says what the speed threshold says, without the differentiator's smear. Never, for a
+/// nonsensical rate.
+fn rest_run(step_peak: f64, dt: f64) -> usize {
+    let periods = (1.0 / (step_peak * dt)).ceil();
+    if periods.is_finite() && periods >= 0.0 {
+        (periods as usize).saturating_add(1)
+    } else {
+        usize::MAX
+    }
+}
+
+/// Samples in runs of at least `min_run` equal values.
+fn held(x: &[f64], min_run: usize) -> Vec<bool> {
+    let mut out = vec![false; x.len()];
+    let mut start = 0;
+    for k in 1..=x.len() {
+        if k == x.len() || x[k] != x[start] {
+            if k - start >= min_run {
+                out[start..k].fill(true);
+            }
+            start = k;
+        }
+    }
+    out
 }
 
 /// Smallest nonzero change between successive samples of a position record (its encoder
@@ -549,6 +587,21 @@ fn instrument(p: &Prepared) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs of equal samples count as held from the given length on, whole; a run as long as
+    /// a joint at the stick velocity takes to cross a count is that length.
+    #[test]
+    fn held_runs() {
+        let x = [0.0, 1.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 3.0];
+        let h = held(&x, 3);
+        assert_eq!(h, [false, true, true, true, false, false, true, true, true]);
+        assert!(held(&x, 1).iter().all(|&b| b));
+        assert!(held(&[], 2).is_empty());
+        // 1/(peak·dt) = 12.5 periods: 13 periods, 14 samples.
+        assert_eq!(rest_run(80.0, 1e-3), 14);
+        assert_eq!(rest_run(f64::NAN, 1e-3), usize::MAX);
+        assert_eq!(rest_run(0.0, 1e-3), usize::MAX);
+    }
 
     /// The probe stops [`PROBE_SPAN`] samples after its impulse on a long record, and its
     /// acceleration response still carries the differentiator's whole noise gain.
