@@ -110,23 +110,28 @@ use sim_plant::lstsq::inverse_sqrt_diagonal;
 pub use sim_plant::lstsq::{gram, gram_inverse};
 
 /// `Σₖ a[k]·b[k]` for each `b` in `bs`, each as `Iterator::sum` over the pair's common length
-/// (in row order, from −0), to the bit. When all have `a`'s length the sums share one pass
-/// over the rows, their chains of dependent additions overlapping: a candidate's cross
-/// products with the model's columns are much of a shape search's time.
+/// (in row order, from −0), to the bit. Four sums share a pass over the rows, their chains of
+/// dependent additions overlapping: a candidate's cross products with the model's columns are
+/// much of a shape search's time.
 pub fn cross_sums(a: &[f64], bs: &[&[f64]]) -> Vec<f64> {
-    if bs.iter().any(|b| b.len() != a.len()) {
-        return bs
-            .iter()
-            .map(|b| a.iter().zip(*b).map(|(x, y)| x * y).sum())
-            .collect();
-    }
-    let mut s = vec![-0.0; bs.len()];
-    for (k, x) in a.iter().enumerate() {
-        for (sj, b) in s.iter_mut().zip(bs) {
-            *sj += x * b[k];
+    let plain = |b: &[f64]| -> f64 { a.iter().zip(b).map(|(x, y)| x * y).sum() };
+    let mut out = Vec::with_capacity(bs.len());
+    for group in bs.chunks(4) {
+        match group {
+            [b0, b1, b2, b3] if [b0, b1, b2, b3].iter().all(|b| b.len() == a.len()) => {
+                let mut acc = [-0.0f64; 4];
+                for ((((x, y0), y1), y2), y3) in a.iter().zip(*b0).zip(*b1).zip(*b2).zip(*b3) {
+                    acc[0] += x * y0;
+                    acc[1] += x * y1;
+                    acc[2] += x * y2;
+                    acc[3] += x * y3;
+                }
+                out.extend(acc);
+            }
+            _ => out.extend(group.iter().map(|b| plain(b))),
         }
     }
-    s
+    out
 }
 
 /// Batch-means sandwich covariance for regressors `cols` and residual `e`.
@@ -427,16 +432,18 @@ mod tests {
         let plain = |x: &[f64], y: &[f64]| -> f64 { x.iter().zip(y).map(|(p, q)| p * q).sum() };
         // Signed zeros too: a zero column against negative values.
         let (zeros, minus) = (vec![0.0; 1001], vec![-1.0; 1001]);
-        let got = cross_sums(&zeros, &[&minus, &b]);
-        assert_eq!(got[0].to_bits(), plain(&zeros, &minus).to_bits());
-        assert_eq!(got[1].to_bits(), plain(&zeros, &b).to_bits());
-        let got = cross_sums(&a, &[&b, &c, &a]);
-        for (g, y) in got.iter().zip([&b, &c, &a]) {
+        let got = cross_sums(&zeros, &[&minus, &b, &minus, &c]);
+        for (g, y) in got.iter().zip([&minus, &b, &minus, &c]) {
+            assert_eq!(g.to_bits(), plain(&zeros, y).to_bits());
+        }
+        let got = cross_sums(&a, &[&b, &c, &a, &zeros, &minus, &c]);
+        for (g, y) in got.iter().zip([&b, &c, &a, &zeros, &minus, &c]) {
             assert_eq!(g.to_bits(), plain(&a, y).to_bits());
         }
-        let got = cross_sums(&a, &[&b[..500], &c]);
-        assert_eq!(got[0].to_bits(), plain(&a, &b[..500]).to_bits());
-        assert_eq!(got[1].to_bits(), plain(&a, &c).to_bits());
+        let got = cross_sums(&a, &[&b[..500], &c, &a, &b]);
+        for (g, y) in got.iter().zip([&b[..500], &c, &a, &b]) {
+            assert_eq!(g.to_bits(), plain(&a, y).to_bits());
+        }
     }
 
     /// The batch sums, taken column by column with `Iterator::sum` over each batch: the
