@@ -169,7 +169,7 @@ fn dry_friction(kind: EffectKind) -> bool {
 /// The stick state of a model with dry friction: a joint at rest is held by static friction,
 /// which is a reaction — it takes whatever value balances the rest of the torque, up to the
 /// breakaway level (Coulomb + Stribeck excess) — not `τc·sign(v)` of a velocity that is only
-/// sensor noise there. Where the joint is at rest by the measurement ([`at_rest`]: the speed
+/// sensor noise there. Where the joint is at rest by the measurement (`at_rest`: the speed
 /// within the noise of rest, or the encoder's count held) the prediction's dry friction is the
 /// balancing torque clipped to the breakaway level, as in the simulator's stick state: exact when it balances, the
 /// excess when the joint should have broken away.
