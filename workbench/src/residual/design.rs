@@ -171,8 +171,8 @@ fn dry_friction(kind: EffectKind) -> bool {
 /// breakaway level (Coulomb + Stribeck excess) — not `τc·sign(v)` of a velocity that is only
 /// sensor noise there. Where the joint is at rest by the measurement (`at_rest`: the speed
 /// within the noise of rest, or the encoder's count held) the prediction's dry friction is the
-/// balancing torque clipped to the breakaway level, as in the simulator's stick state: exact when it balances, the
-/// excess when the joint should have broken away.
+/// balancing torque clipped to the breakaway level, as in the simulator's stick state: exact
+/// when it balances, the excess when the joint should have broken away.
 #[derive(Debug, Clone)]
 pub struct StaticFriction {
     /// The prediction without dry friction.
