@@ -2,6 +2,8 @@
 //! model's design matrix, the bias-compensated least-squares refit (the position noise's
 //! covariance through the differentiator), and the predicted input.
 
+use std::sync::Arc;
+
 use sim_plant::effects::{fingerprint, EffectKind, Shape, Trajectory};
 
 use super::super::diff;
@@ -59,26 +61,31 @@ pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f
 
 /// Regressor columns of every parameter of a model, in [`Model::params`] order.
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
-    columns_with(model, p, None)
-}
-
-/// [`columns`], each effect's from `memo` when it holds them.
-fn columns_with(model: &Model, p: &Prepared, memo: Option<&ColumnMemo>) -> Vec<Vec<f64>> {
-    use rayon::prelude::*;
     let mut cols = vec![p.acceleration.clone()];
-    let per: Vec<Vec<Vec<f64>>> = model
-        .effects
-        .par_iter()
-        .map(|e| match memo {
-            Some(m) => m.columns(e.kind, p, &e.shape).as_ref().clone(),
-            None => model_columns(e.kind, p, &e.shape),
-        })
-        .collect();
-    for (e, mut c) in model.effects.iter().zip(per) {
+    for (e, set) in model.effects.iter().zip(effect_columns(model, p, None)) {
+        let mut c = set.as_ref().clone();
         c.resize(e.params.len(), vec![0.0; p.len()]);
         cols.extend(c);
     }
     cols
+}
+
+/// Each effect's columns, from `memo` when it holds them (on the worker pool: a shape search
+/// builds them at every refit).
+fn effect_columns(
+    model: &Model,
+    p: &Prepared,
+    memo: Option<&ColumnMemo>,
+) -> Vec<Arc<Vec<Vec<f64>>>> {
+    use rayon::prelude::*;
+    model
+        .effects
+        .par_iter()
+        .map(|e| match memo {
+            Some(m) => m.columns(e.kind, p, &e.shape),
+            None => Arc::new(model_columns(e.kind, p, &e.shape)),
+        })
+        .collect()
 }
 
 /// Whether a parameter is fitted by linear least squares: free, and not a delay (a delay's
@@ -122,35 +129,51 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
     design_with(model, p, None)
 }
 
-/// [`design`], the effects' columns from `memo` when it holds them.
+/// [`design`], the effects' columns from `memo` when it holds them. Each free column is
+/// copied once and its stuck rows zeroed; a fixed one is only read.
 fn design_with(model: &Model, p: &Prepared, memo: Option<&ColumnMemo>) -> Design {
-    let all = columns_with(model, p, memo);
-    let stuck = static_friction(model, p, &all).map(|s| s.stuck(p));
+    let sets = effect_columns(model, p, memo);
+    let stuck = breakaway_limit(model, p).map(|_| stuck_rows(p));
+    let n = p.len();
+    let zeros = vec![0.0; n];
+    let zeros = &zeros;
+    // Every parameter's column in `Model::params` order: the inertia's acceleration, then
+    // each effect's, zero for a parameter without one.
+    let all = std::iter::once(&p.acceleration).chain(
+        model
+            .effects
+            .iter()
+            .zip(&sets)
+            .flat_map(|(e, set)| (0..e.params.len()).map(move |j| set.get(j).unwrap_or(zeros))),
+    );
     let params = model.params();
     let owner = model.param_owners();
     let mut y = p.input.clone();
     let mut cols = Vec::new();
     let mut free = Vec::new();
-    for (i, (c, par)) in all.into_iter().zip(params).enumerate() {
+    for (i, (c, par)) in all.zip(params).enumerate() {
         if ls_free(owner[i], par.free) {
+            let mut c = c.clone();
+            for &k in stuck.iter().flatten() {
+                c[k] = 0.0;
+            }
             cols.push(c);
             free.push(i);
         } else {
-            for (yy, x) in y.iter_mut().zip(&c) {
+            for (yy, x) in y.iter_mut().zip(c) {
                 *yy -= par.value * x;
             }
         }
     }
+    let first_state = cols.len();
     cols.extend(initial_state_columns(model, p));
     let mut live_rows = y.len();
-    if let Some(stuck) = stuck {
-        for (k, _) in stuck.iter().enumerate().filter(|(_, &s)| s) {
-            y[k] = 0.0;
-            for c in &mut cols {
-                c[k] = 0.0;
-            }
-            live_rows -= 1;
+    for &k in stuck.iter().flatten() {
+        y[k] = 0.0;
+        for c in &mut cols[first_state..] {
+            c[k] = 0.0;
         }
+        live_rows -= 1;
     }
     Design {
         cols,
@@ -183,15 +206,15 @@ pub struct StaticFriction {
     limit: f64,
 }
 
-impl StaticFriction {
-    /// Samples at rest. All of them, not only those whose balancing torque the current
-    /// breakaway level holds: that choice would depend on the amplitudes being fitted and
-    /// reward a larger level with fewer rows to explain (a Coulomb term would grow to cover a
-    /// Stribeck excess at rest).
-    fn stuck(&self, p: &Prepared) -> Vec<bool> {
-        (0..p.len()).map(|k| at_rest(p, k)).collect()
-    }
+/// The samples a model with static friction holds at rest: all of them, not only those
+/// whose balancing torque the current breakaway level holds. That choice would depend on the
+/// amplitudes being fitted and reward a larger level with fewer rows to explain (a Coulomb
+/// term would grow to cover a Stribeck excess at rest). Their indices, in order.
+fn stuck_rows(p: &Prepared) -> Vec<usize> {
+    (0..p.len()).filter(|&k| at_rest(p, k)).collect()
+}
 
+impl StaticFriction {
     /// The prediction with the stick state.
     fn predict(&self, p: &Prepared) -> Vec<f64> {
         (0..p.len())
@@ -217,9 +240,10 @@ fn at_rest(p: &Prepared, k: usize) -> bool {
     p.velocity[k].abs() < p.stick_velocity || p.held.get(k).copied().unwrap_or(false)
 }
 
-/// [`StaticFriction`] of a model from its columns (`None` without Coulomb friction, or for
-/// unquantised positions, where rest is not distinguishable from slow motion).
-pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option<StaticFriction> {
+/// The breakaway level of `model`'s dry friction (Coulomb + Stribeck excess), when the
+/// model has a stick state on `p`: a Coulomb term with a positive level, and a record whose
+/// rest is measurable.
+fn breakaway_limit(model: &Model, p: &Prepared) -> Option<f64> {
     if p.stick_velocity.is_nan() || p.stick_velocity <= 0.0 {
         return None;
     }
@@ -233,6 +257,13 @@ pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option
     if !model.has(EffectKind::Coulomb) || limit <= 0.0 {
         return None;
     }
+    Some(limit)
+}
+
+/// [`StaticFriction`] of a model from its columns (`None` without Coulomb friction, or for
+/// unquantised positions, where rest is not distinguishable from slow motion).
+pub fn static_friction(model: &Model, p: &Prepared, cols: &[Vec<f64>]) -> Option<StaticFriction> {
+    let limit = breakaway_limit(model, p)?;
     let owner = model.param_owners();
     let mut rest = vec![0.0; p.len()];
     let mut sliding = vec![0.0; p.len()];
