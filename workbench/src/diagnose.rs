@@ -48,7 +48,7 @@ use sim_plant::effects::{compliance, resolved, shape_search, EffectKind, Shape, 
 use super::fit::{self, cross_sums, gram, gram_inverse};
 use super::metrics::Score;
 use super::model::Model;
-use super::residual::{self, Prepared};
+use super::residual::{self, ColumnMemo, Prepared};
 use super::stats;
 use super::units::eng;
 
@@ -179,7 +179,9 @@ struct Scan {
 /// window (the quiet middle of a chirp) can cut to a third.
 pub const SEARCH_WINDOW: usize = 40_000;
 
-/// Best shape of one effect by ERR against residual `e` of regressors with Gram inverse `g0i`.
+/// Best shape of one effect by ERR against residual `e` of regressors with Gram inverse `g0i`
+/// (the candidate columns from `memo` when it holds them).
+#[allow(clippy::too_many_arguments)]
 fn scan(
     kind: EffectKind,
     p: &Prepared,
@@ -188,13 +190,14 @@ fn scan(
     g0i: &DMatrix<f64>,
     e: &[f64],
     rss: f64,
+    memo: Option<&ColumnMemo>,
 ) -> Option<Scan> {
     let t = p.trajectory();
     let whole = kind.fit_traits().search == sim_plant::effects::ShapeSearch::Period;
     let (shape, dr, grid) = if t.len() <= SEARCH_WINDOW || whole {
-        search(kind, &t, x0, g0i, e, path, p.input_noise_var)?
+        search(kind, &t, x0, g0i, e, path, p.input_noise_var, memo)?
     } else {
-        search_windowed(kind, p, path, &t, x0, g0i, e)?
+        search_windowed(kind, p, path, &t, x0, g0i, e, memo)?
     };
     Some(Scan {
         kind,
@@ -206,6 +209,7 @@ fn scan(
 
 /// [`search`] on the central [`SEARCH_WINDOW`] samples of a long record; the chosen shape is
 /// then scored (ΔRSS) on the whole record.
+#[allow(clippy::too_many_arguments)]
 fn search_windowed(
     kind: EffectKind,
     p: &Prepared,
@@ -214,6 +218,7 @@ fn search_windowed(
     x0: &[Vec<f64>],
     g0i: &DMatrix<f64>,
     e: &[f64],
+    memo: Option<&ColumnMemo>,
 ) -> Option<(Shape, f64, usize)> {
     let n = t.len();
     let w = (n - SEARCH_WINDOW) / 2..(n + SEARCH_WINDOW) / 2;
@@ -230,7 +235,7 @@ fn search_windowed(
     let gw = gram_inverse(&gram(&xw));
     // The window's residual, made orthogonal to the window's regressors.
     let ew = fit::least_squares(&xw, &e[w.clone()]).ok()?.residual;
-    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew, path, p.input_noise_var)?;
+    let (shape, _, grid) = search(kind, &tw, &xw, &gw, &ew, path, p.input_noise_var, memo)?;
     let z = residual::candidate_columns_on(kind, t, &shape);
     let rss: f64 = e.iter().map(|v| v * v).sum();
     let bias = input_noise_bias(kind, &shape, path, p.input_noise_var, e.len(), rss);
@@ -252,6 +257,7 @@ fn search(
     e: &[f64],
     path: Option<&InputPath>,
     input_noise_var: f64,
+    memo: Option<&ColumnMemo>,
 ) -> Option<(Shape, f64, usize)> {
     // Where physics fixes the sign of the first amplitude, a shape whose fit has the wrong
     // sign explains nothing (the same rule as the test below), so the search does not settle
@@ -260,7 +266,10 @@ fn search(
     let sign = kind.admissible_sign();
     let rss: f64 = e.iter().map(|v| v * v).sum();
     let score = |s: &Shape| {
-        let z = residual::candidate_columns_on(kind, t, s);
+        let z = match memo {
+            Some(m) => m.candidate(kind, t, s),
+            None => std::sync::Arc::new(residual::candidate_columns_on(kind, t, s)),
+        };
         if z.is_empty() {
             return None;
         }
@@ -475,7 +484,7 @@ pub fn scan_shape(
     rss: f64,
 ) -> Option<(Shape, f64)> {
     let path = InputPath::of(model, p);
-    scan(kind, p, path.as_ref(), x0, g0i, e, rss).map(|s| (s.shape, s.err))
+    scan(kind, p, path.as_ref(), x0, g0i, e, rss, None).map(|s| (s.shape, s.err))
 }
 
 /// ERR of compliance in its *motion form* (`H₂·a`: the acceleration high-passed at the
@@ -589,6 +598,17 @@ fn prefer_parsimonious(
 
 /// Diagnose the (already fitted) model on prepared data.
 pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
+    diagnose_with(model, p, opts, None)
+}
+
+/// [`diagnose`], the candidates' columns from `memo` when it holds them: `--auto` diagnoses
+/// one record after every step, over the same grid of candidate shapes.
+pub fn diagnose_with(
+    model: &Model,
+    p: &Prepared,
+    opts: &Options,
+    memo: Option<&ColumnMemo>,
+) -> Diagnosis {
     let d = residual::design(model, p);
     let x0 = &d.cols;
     let g0i = gram_inverse(&gram(x0));
@@ -644,7 +664,7 @@ pub fn diagnose(model: &Model, p: &Prepared, opts: &Options) -> Diagnosis {
         kinds
             .par_iter()
             .enumerate()
-            .map(|(i, &k)| (i, scan(k, p, path, x0, &g0i, e, rss)))
+            .map(|(i, &k)| (i, scan(k, p, path, x0, &g0i, e, rss, memo)))
             .collect()
     };
     for (i, sc) in scanned {

@@ -11,7 +11,7 @@ use sim_plant::effects::{EffectKind, Shape};
 use super::super::diagnose::{self, Diagnosis, Options};
 use super::super::fit;
 use super::super::model::{EffectEntry, Model};
-use super::super::residual::{self, Prepared};
+use super::super::residual::{self, ColumnMemo, Prepared};
 use rayon::prelude::*;
 
 use super::{refit_added, refit_all, score, Score};
@@ -92,8 +92,10 @@ pub fn auto_observed(
     });
     let start_len = model.effects.len();
     let mut seen: Vec<diagnose::Candidate> = Vec::new();
+    // Every step diagnoses `p` again, over the same grid of candidate shapes.
+    let memo = ColumnMemo::with_budget(residual::DIAGNOSIS_BUDGET);
     loop {
-        let d = diagnose::diagnose(model, p, opts);
+        let d = diagnose::diagnose_with(model, p, opts, Some(&memo));
         for c in &d.candidates {
             // Significant candidates, and the best of an effect nesting one in the model even
             // when not significant: a ripple period between grid points explains little at the
@@ -151,7 +153,7 @@ pub fn auto_observed(
                     verdict,
                 });
             }
-            let last = diagnose::diagnose(model, p, opts);
+            let last = diagnose::diagnose_with(model, p, opts, Some(&memo));
             return Ok(AutoRun {
                 steps: steps.list,
                 last,

@@ -21,7 +21,7 @@ mod memo;
 mod prepared;
 
 pub use design::*;
-pub use memo::ColumnMemo;
+pub use memo::{ColumnMemo, DIAGNOSIS_BUDGET};
 pub use prepared::*;
 
 use sim_plant::effects::{fingerprint, Trajectory};
