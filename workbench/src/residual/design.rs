@@ -63,7 +63,7 @@ pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
     let mut cols = vec![p.acceleration.clone()];
     for (e, set) in model.effects.iter().zip(effect_columns(model, p, None)) {
-        let mut c = set.as_ref().clone();
+        let mut c = Arc::try_unwrap(set).unwrap_or_else(|shared| shared.as_ref().clone());
         c.resize(e.params.len(), vec![0.0; p.len()]);
         cols.extend(c);
     }
