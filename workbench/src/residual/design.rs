@@ -61,13 +61,24 @@ pub fn model_columns(kind: EffectKind, p: &Prepared, shape: &Shape) -> Vec<Vec<f
 
 /// Regressor columns of every parameter of a model, in [`Model::params`] order.
 pub fn columns(model: &Model, p: &Prepared) -> Vec<Vec<f64>> {
-    let mut cols = vec![p.acceleration.clone()];
-    for (e, set) in model.effects.iter().zip(effect_columns(model, p, None)) {
-        let mut c = Arc::try_unwrap(set).unwrap_or_else(|shared| shared.as_ref().clone());
-        c.resize(e.params.len(), vec![0.0; p.len()]);
-        cols.extend(c);
-    }
-    cols
+    let sets = effect_columns(model, p, None);
+    let zeros = vec![0.0; p.len()];
+    per_param(model, p, &sets, &zeros).cloned().collect()
+}
+
+/// Every parameter's column in [`Model::params`] order, from each effect's `sets`: the
+/// inertia's acceleration, then each effect's, `zeros` for a parameter without one.
+fn per_param<'a>(
+    model: &'a Model,
+    p: &'a Prepared,
+    sets: &'a [Arc<Vec<Vec<f64>>>],
+    zeros: &'a Vec<f64>,
+) -> impl Iterator<Item = &'a Vec<f64>> {
+    std::iter::once(&p.acceleration).chain(
+        model.effects.iter().zip(sets).flat_map(move |(e, set)| {
+            (0..e.params.len()).map(move |j| set.get(j).unwrap_or(zeros))
+        }),
+    )
 }
 
 /// Each effect's columns, from `memo` when it holds them (on the worker pool: a shape search
@@ -134,18 +145,8 @@ pub fn design(model: &Model, p: &Prepared) -> Design {
 fn design_with(model: &Model, p: &Prepared, memo: Option<&ColumnMemo>) -> Design {
     let sets = effect_columns(model, p, memo);
     let stuck = breakaway_limit(model, p).map(|_| stuck_rows(p));
-    let n = p.len();
-    let zeros = vec![0.0; n];
-    let zeros = &zeros;
-    // Every parameter's column in `Model::params` order: the inertia's acceleration, then
-    // each effect's, zero for a parameter without one.
-    let all = std::iter::once(&p.acceleration).chain(
-        model
-            .effects
-            .iter()
-            .zip(&sets)
-            .flat_map(|(e, set)| (0..e.params.len()).map(move |j| set.get(j).unwrap_or(zeros))),
-    );
+    let zeros = vec![0.0; p.len()];
+    let all = per_param(model, p, &sets, &zeros);
     let params = model.params();
     let owner = model.param_owners();
     let mut y = p.input.clone();
