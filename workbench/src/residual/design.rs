@@ -6,7 +6,6 @@ use std::sync::Arc;
 
 use sim_plant::effects::{fingerprint, EffectKind, Shape, Trajectory};
 
-use super::super::diff;
 use super::super::fit::{self, LsFit};
 use super::super::model::Model;
 use super::{ColumnMemo, Prepared};
@@ -25,9 +24,7 @@ fn filtered(kind: EffectKind) -> bool {
 
 fn band_limit(kind: EffectKind, t: &Trajectory, mut z: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
     if filtered(kind) && t.dt > 0.0 && t.lowpass_hz > 0.0 {
-        for c in &mut z {
-            *c = diff::filtfilt(c, t.lowpass_hz, 1.0 / t.dt);
-        }
+        z = sim_plant::effects::signal::filtfilt_each(z, t.lowpass_hz, 1.0 / t.dt);
     }
     z
 }
