@@ -154,10 +154,7 @@ impl Biquad {
 fn run_cascade(first: &Biquad, second: &Biquad, x: &mut [f64], forward: bool) {
     let start = if forward { x.first() } else { x.last() };
     let Some(&c) = start else { return };
-    let mut z1 = first.steady(c);
-    // The first section's first output, without advancing its state: the second's start.
-    let mut probe = z1;
-    let mut z2 = second.steady(first.step(c, &mut probe));
+    let (mut z1, mut z2) = cascade_start(first, second, c);
     let mut each = |v: &mut f64| *v = second.step(first.step(*v, &mut z1), &mut z2);
     if forward {
         x.iter_mut().for_each(&mut each);
@@ -166,18 +163,22 @@ fn run_cascade(first: &Biquad, second: &Biquad, x: &mut [f64], forward: bool) {
     }
 }
 
+/// The two sections' states at rest for a cascade whose first input is `c`: the second starts
+/// from the first's first output (taken without advancing the first's state).
+fn cascade_start(first: &Biquad, second: &Biquad, c: f64) -> ((f64, f64), (f64, f64)) {
+    let z1 = first.steady(c);
+    let mut probe = z1;
+    (z1, second.steady(first.step(c, &mut probe)))
+}
+
 /// [`run_cascade`] over `x` and `y` (of one length) in one loop, each to the bit as alone.
 fn run_cascade_pair(first: &Biquad, second: &Biquad, x: &mut [f64], y: &mut [f64], forward: bool) {
     let start = |v: &[f64]| if forward { v.first() } else { v.last() }.copied();
     let (Some(cx), Some(cy)) = (start(x), start(y)) else {
         return;
     };
-    let init = |c: f64| {
-        let z1 = first.steady(c);
-        let mut probe = z1;
-        (z1, second.steady(first.step(c, &mut probe)))
-    };
-    let ((mut x1, mut x2), (mut y1, mut y2)) = (init(cx), init(cy));
+    let (mut x1, mut x2) = cascade_start(first, second, cx);
+    let (mut y1, mut y2) = cascade_start(first, second, cy);
     let mut each = |(u, v): (&mut f64, &mut f64)| {
         *u = second.step(first.step(*u, &mut x1), &mut x2);
         *v = second.step(first.step(*v, &mut y1), &mut y2);
