@@ -22,7 +22,7 @@ pub const EDGE_CUTOFF_PERIODS: f64 = 5.0;
 
 /// Zero-phase 4th-order Butterworth low-pass of `x` (sample rate `fs`, cut-off `fc`, Hz); it
 /// lives in `sim_plant::effects::signal` so that fingerprints can apply the same filter.
-pub use sim_plant::effects::signal::filtfilt;
+pub use sim_plant::effects::signal::{filtfilt, filtfilt_each};
 
 /// RMS gain of the zero-phase filter for white noise (√Σh² of its impulse response).
 pub fn noise_gain(fc: f64, fs: f64) -> f64 {

@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use sim_plant::effects::{fingerprint, EffectKind, Shape, Trajectory};
 
+use super::super::diff;
 use super::super::fit::{self, LsFit};
 use super::super::model::Model;
 use super::{ColumnMemo, Prepared};
@@ -24,7 +25,7 @@ fn filtered(kind: EffectKind) -> bool {
 
 fn band_limit(kind: EffectKind, t: &Trajectory, mut z: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
     if filtered(kind) && t.dt > 0.0 && t.lowpass_hz > 0.0 {
-        z = sim_plant::effects::signal::filtfilt_each(z, t.lowpass_hz, 1.0 / t.dt);
+        z = diff::filtfilt_each(z, t.lowpass_hz, 1.0 / t.dt);
     }
     z
 }
@@ -601,7 +602,6 @@ pub fn predict(model: &Model, p: &Prepared) -> Vec<f64> {
 mod tests {
     use super::*;
     use crate::data::Recording;
-    use crate::diff;
 
     /// The spread of white noise's energy through an AR(1) response h = rᵏ: Σₖ Rₖ² =
     /// (1 + r²)/(1 − r²)³; and a unit impulse passes `rows` independent samples.
