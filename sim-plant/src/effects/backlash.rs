@@ -137,17 +137,16 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     vec![deflection_column(&d, tau, traj.dt)]
 }
 
-/// What a motor encoder alone tells of a transmission with a gap and a spring: the spring's
-/// mode is its larger part of the residual and comes first (`compliance`), the gap then as
-/// the next step (`backlash`); their widths, stiffness and the load's inertia trade off
-/// against each other, and the light motor's chatter inside the gap is faster than the
-/// differentiator's band.
+/// What a motor encoder alone tells of a transmission with a gap and a spring: whichever
+/// explains more ranks first. The spring's column and the gap's each carry the load's
+/// inertia, and fitted apart they disagree, so a model holds one of them (a model file has
+/// one J2); the light motor's chatter inside the gap is faster than the differentiator's band.
 pub const MOTOR_ONLY: &str = "from the motor encoder alone a transmission's spring and a gap \
-     in it are told apart only roughly: the spring's mode shows first (compliance), a gap as \
-     the next step (backlash, in `--auto`); the gap's width, the stiffness and the load's \
-     inertia are identified together, not each on its own, and the motor's chatter inside \
-     the gap is above the differentiator's band — a load-side encoder (--load-output) \
-     measures the deflection itself";
+     in it are told apart only roughly: whichever explains more ranks first, and a model \
+     holds one of them (each names the load's inertia, and fitted apart they disagree, so \
+     `--auto` does not add the other after it); the motor's chatter inside the gap is above \
+     the differentiator's band — a load-side encoder (--load-output) measures the deflection \
+     itself";
 
 /// Why the record rules a backlash out, if it does: it has a load position whose deflection
 /// shows no gap ([`shows_gap`]). The measured-deflection column (see [`fingerprint`]) is
@@ -262,7 +261,7 @@ pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
     (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
 }
 
-/// Widths log-spaced from 3e-4 to 0.1 of the position span, for each of [`LOAD_TIMES`] and
+/// Widths log-spaced from 3e-4 (or one count) to 0.1 of the position span, for each of [`LOAD_TIMES`] and
 /// [`LOAD_FRACTIONS`] of the record's [`rigid_time_constant`]. The fit is sharp in τ (it sets
 /// the load's deceleration while it crosses the gap, against a relative deceleration of the
 /// motor that is often a small fraction of it), so the generic ×5 steps alone miss it.
@@ -280,7 +279,21 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     // (a grid over widths would only multiply the search's multiplicity).
     let widths = match measured_width(traj) {
         Some(b) => vec![b],
-        None => log_space(3e-4 * span, 0.1 * span, 7),
+        None => {
+            // From 3e-4 of the span, continued at the same steps down to one count where the
+            // encoder resolves finer: a gap of a few counts in a stiff transmission still
+            // shows (its impacts), a finer one does not. The coarse grid stays a subset, so a
+            // fine encoder only adds widths.
+            let lo = 3e-4 * span;
+            let mut w = log_space(lo, 0.1 * span, 7);
+            let step = traj.position_step;
+            let ratio = w[1] / w[0];
+            if step > 0.0 && step < lo && ratio > 1.0 {
+                let below = ((lo / step).ln() / ratio.ln()).ceil() as i32;
+                w.splice(0..0, (1..=below).rev().map(|k| lo / ratio.powi(k)));
+            }
+            w
+        }
     };
     let mut out = Vec::new();
     for tau in taus {
@@ -451,5 +464,36 @@ mod tests {
         let tau = rigid_time_constant(&traj).expect("J and b positive");
         assert!((tau - 0.4).abs() < 1e-9, "J/b = {tau}");
         assert_eq!(shape_grid(&traj).len(), 7 * (LOAD_TIMES.len() + LOAD_FRACTIONS.len()));
+    }
+
+    /// A fine encoder takes the widths down to one count at the coarse grid's step or finer;
+    /// a coarse one (a count above 3e-4 of the span) or an unknown one leaves the grid as it is.
+    #[test]
+    fn widths_reach_down_to_one_count() {
+        let n = 2000;
+        let dt = 1e-3;
+        let q: Vec<f64> = (0..n).map(|k| 4.0 * (k as f64 * dt * 3.0).sin()).collect();
+        let span = q.iter().cloned().fold(f64::MIN, f64::max) - q.iter().cloned().fold(f64::MAX, f64::min);
+        let zero = vec![0.0; n];
+        let widths = |step: f64| -> Vec<f64> {
+            let t = Trajectory {
+                position_step: step,
+                ..Trajectory::unfiltered(dt, &zero, &q, &zero, &zero)
+            };
+            let mut w: Vec<f64> = shape_grid(&t).iter().map(|s| s.backlash_width).collect();
+            w.sort_by(f64::total_cmp);
+            w.dedup();
+            w
+        };
+        let coarse = widths(0.0);
+        assert_eq!(coarse.len(), 7);
+        assert!((coarse[0] / (3e-4 * span) - 1.0).abs() < 1e-9);
+        assert_eq!(widths(1e-3 * span), coarse);
+        let count = 2.0 * std::f64::consts::PI / f64::from(1u32 << 20);
+        let fine = widths(count);
+        let ratio = coarse[1] / coarse[0];
+        assert!(fine[0] <= count && fine[0] * ratio > count, "{} vs {count}", fine[0]);
+        assert!(coarse.iter().all(|c| fine.iter().any(|f| (f / c - 1.0).abs() < 1e-9)));
+        assert!(fine.windows(2).all(|w| (w[1] / w[0] / ratio - 1.0).abs() < 1e-9));
     }
 }

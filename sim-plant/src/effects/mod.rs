@@ -83,6 +83,10 @@ pub struct Trajectory<'a> {
     /// Turns of `position` per turn of the joint's output: a gear's ratio N when the position
     /// is the motor shaft's, 1 when it is the output's. Gravity acts on the output angle.
     pub gear_ratio: f64,
+    /// The position's resolution: the smallest change the record shows (an encoder's count;
+    /// 0 when unknown or unquantised). Shapes measured in position (a gap's width) are
+    /// searched down to it, as a lost motion the encoder resolves can show.
+    pub position_step: f64,
 }
 
 impl<'a> Trajectory<'a> {
@@ -109,6 +113,7 @@ impl<'a> Trajectory<'a> {
             load_position: &[],
             intersample: Intersample::Bl,
             gear_ratio: 1.0,
+            position_step: 0.0,
         }
     }
 

@@ -60,6 +60,9 @@ pub struct Prepared {
     /// (about 40 % of this) left most of a held phase outside the band, where the clamp to the
     /// breakaway level then mispredicted it. See [`super::static_friction`].
     pub stick_velocity: f64,
+    /// The position's quantisation step (the smallest nonzero change in the record; about 0
+    /// for unquantised data).
+    pub position_step: f64,
     /// Variance of the white noise on the recorded position (encoder quantisation and sensor
     /// noise, see `position_noise_variance`). Through the differentiator it reaches every
     /// regressor built linearly from the motion — the acceleration, the velocity, the
@@ -321,6 +324,7 @@ impl Prepared {
             None => (Vec::new(), 0.0),
         };
         let step_peak = diff::step_velocity_peak(fc, rec.dt);
+        let position_step = quantisation_step(raw_output);
         let mut p = Prepared {
             time: rec.time[r.clone()].to_vec(),
             input: uf[r.clone()].to_vec(),
@@ -336,7 +340,8 @@ impl Prepared {
             dt: rec.dt,
             cutoff_hz: fc,
             input_instrument: Vec::new(),
-            stick_velocity: quantisation_step(raw_output) * step_peak,
+            stick_velocity: position_step * step_peak,
+            position_step,
             position_noise_var,
             acceleration_noise_var,
             load_position,
@@ -410,6 +415,7 @@ impl Prepared {
             load_position: &self.load_position,
             intersample: self.intersample,
             gear_ratio: self.gear_ratio,
+            position_step: self.position_step,
         }
     }
 
@@ -491,6 +497,7 @@ fn noise_probe(len: usize, edge: usize, dt: f64, fc: f64, what: Impulse) -> Opti
         cutoff_hz: fc,
         input_instrument: vec![0.0; n],
         stick_velocity: 0.0,
+        position_step: 0.0,
         position_noise_var: 0.0,
         acceleration_noise_var: 0.0,
         load_position: Vec::new(),
