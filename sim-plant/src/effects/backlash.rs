@@ -261,10 +261,11 @@ pub fn rigid_time_constant(traj: &Trajectory) -> Option<f64> {
     (j > 0.0 && b > 0.0 && (j / b).is_finite()).then(|| j / b)
 }
 
-/// Widths log-spaced from 3e-4 (or one count) to 0.1 of the position span, for each of [`LOAD_TIMES`] and
-/// [`LOAD_FRACTIONS`] of the record's [`rigid_time_constant`]. The fit is sharp in τ (it sets
-/// the load's deceleration while it crosses the gap, against a relative deceleration of the
-/// motor that is often a small fraction of it), so the generic ×5 steps alone miss it.
+/// Widths log-spaced from 3e-4 (or one count) to 0.1 of the position span, for each of
+/// [`LOAD_TIMES`] and [`LOAD_FRACTIONS`] of the record's [`rigid_time_constant`]. The fit is
+/// sharp in τ (it sets the load's deceleration while it crosses the gap, against a relative
+/// deceleration of the motor that is often a small fraction of it), so the generic ×5 steps
+/// alone miss it.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
     let n = traj.len();
     let (lo, hi) = traj.position[..n]
