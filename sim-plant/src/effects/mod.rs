@@ -84,8 +84,8 @@ pub struct Trajectory<'a> {
     /// is the motor shaft's, 1 when it is the output's. Gravity acts on the output angle.
     pub gear_ratio: f64,
     /// The position's resolution: the smallest change the record shows (an encoder's count;
-    /// 0 when unknown or unquantised). Shapes measured in position (a gap's width) are
-    /// searched down to it, as a lost motion the encoder resolves can show.
+    /// 0 when unknown, about 0 for unquantised data). Shapes measured in position (a gap's
+    /// width) are searched down to it, as a lost motion the encoder resolves can show.
     pub position_step: f64,
 }
 
