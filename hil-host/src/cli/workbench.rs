@@ -20,7 +20,7 @@ use jointlab_workbench::schema;
 /// Examples for `compare --help`.
 pub const COMPARE_EXAMPLES: &str = "Examples:
   # EMPS's validation record (a dataset file names the CSV and its columns), report in report/
-  hil-host compare datasets/emps-pulses.toml --model emps2.toml --out report
+  hil-host compare datasets/emps-pulses.toml --model emps2.toml --report report
   # a CSV whose header has unit suffixes needs no column flags; output error, PNGs as well
   hil-host compare run.csv --model fitted.toml --residual output --png
   # or name the columns
@@ -30,7 +30,7 @@ pub const COMPARE_EXAMPLES: &str = "Examples:
 pub const DIAGNOSE_EXAMPLES: &str = "Examples:
   hil-host diagnose datasets/emps.toml --json
   # add effects until nothing significant is left, validated on the dataset's `validate`
-  hil-host diagnose datasets/emps.toml --auto --save-model auto.toml --out auto-report
+  hil-host diagnose datasets/emps.toml --auto --save-model auto.toml --report auto-report
   hil-host diagnose run.csv --input torque_Nm --output q_rad --auto --validate val.csv";
 
 /// Examples for `fit --help`.

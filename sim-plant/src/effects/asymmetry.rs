@@ -8,7 +8,7 @@
 //! Fingerprint: `[step_ε(v), max(v, 0)]` with `step_ε(v) = (1 + sign_ε(v))/2` — the residual
 //! mean differs between ± motion, and the viscous slope differs.
 
-use super::signal::smooth_sign;
+use super::coulomb::dry_sign;
 use super::{EffectLaws, Shape, Trajectory};
 use super::FitTraits;
 
@@ -49,14 +49,13 @@ pub fn install(p: &Params, laws: &mut EffectLaws) {
 pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let n = traj.len();
     let v = &traj.velocity[..n];
-    let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     let vh = shape.stick_velocity;
     let w = super::stribeck::stick_weights(traj, vh);
     vec![
         v.iter()
             .zip(&traj.acceleration[..n])
             .zip(&w)
-            .map(|((&v, &a), w)| (1.0 - w) * (0.5 * (1.0 + smooth_sign(v + lead * a, eps))))
+            .map(|((&v, &a), w)| (1.0 - w) * (0.5 * (1.0 + dry_sign(v, a, shape))))
             .collect(),
         v.iter().map(|&v| v.max(0.0)).collect(),
     ]
@@ -64,5 +63,5 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
 
 /// Same sign-smoothing grid as Coulomb.
 pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
-    super::coulomb::sign_epsilon_grid(traj)
+    super::coulomb::sign_grid(traj)
 }

@@ -87,6 +87,10 @@ pub struct Trajectory<'a> {
     /// 0 when unknown, about 0 for unquantised data). Shapes measured in position (a gap's
     /// width) are searched down to it, as a lost motion the encoder resolves can show.
     pub position_step: f64,
+    /// The speed a joint at rest shows: one position step flickering, through the
+    /// differentiator that made `velocity` (0 when unknown). Dry friction's sign is held
+    /// linear up to it, as a measured velocity that small is noise.
+    pub rest_velocity: f64,
 }
 
 impl<'a> Trajectory<'a> {
@@ -114,6 +118,7 @@ impl<'a> Trajectory<'a> {
             intersample: Intersample::Bl,
             gear_ratio: 1.0,
             position_step: 0.0,
+            rest_velocity: 0.0,
         }
     }
 
@@ -207,6 +212,13 @@ pub struct Shape {
     /// replaced by v/ε (a deadbanded sign: measured velocity near zero is mostly quantisation
     /// noise). Units of velocity.
     pub sign_epsilon: f64,
+    /// Coulomb, asymmetry, stribeck: a time T (s) by which the sign's linear zone widens with
+    /// the acceleration, ε + |a|·T, so that every reversal is smoothed over about 2T whatever
+    /// its speed. What smooths a measured reversal acts over time (the band limit the
+    /// residual went through, a pre-sliding displacement crossed at the reversal's pace); a
+    /// zone in velocity alone spans 2ε/|a|, tens of milliseconds at a slow reversal when ε
+    /// was fitted to fast ones. 0 = the zone in velocity alone.
+    pub sign_time: f64,
     /// Stribeck: characteristic velocity vs of the stiction→Coulomb transition.
     pub stribeck_velocity: f64,
     /// Stribeck: exponent δ in exp(−(|v|/vs)^δ) (1 = exponential, 2 = Gaussian).
@@ -270,6 +282,7 @@ impl Default for Shape {
     fn default() -> Self {
         Self {
             sign_epsilon: 1e-3,
+            sign_time: 0.0,
             stribeck_velocity: 0.05,
             stribeck_exponent: 2.0,
             ripple_period: std::f64::consts::TAU / 100.0,

@@ -9,7 +9,7 @@
 //! peaks near velocity zero-crossings and grows as speed falls). The refit's form adds the
 //! bristle-damping transient and the stick hold (see [`fingerprint`]).
 
-use super::signal::{log_space, positive_or, smooth_sign};
+use super::signal::{log_space, positive_or};
 use super::{EffectLaws, Shape, Trajectory};
 use super::{EffectKind, FitTraits, ShapeSearch, SmoothShape};
 
@@ -147,11 +147,10 @@ pub fn fingerprint(traj: &Trajectory, shape: &Shape) -> Vec<Vec<f64>> {
     let d = shape.stribeck_exponent;
     let n = traj.len();
     let (v, a) = (&traj.velocity[..n], &traj.acceleration[..n]);
-    let (eps, lead) = (shape.sign_epsilon, shape.sign_lead);
     let slip = v
         .iter()
         .zip(a)
-        .map(|(&v, &a)| smooth_sign(v + lead * a, eps) * (-(v.abs() / vs).powf(d)).exp());
+        .map(|(&v, &a)| super::coulomb::dry_sign(v, a, shape) * (-(v.abs() / vs).powf(d)).exp());
     let vh = shape.stick_velocity;
     let Some(u) = traj.raw_input.get(traj.raw_offset..traj.raw_offset + n) else {
         return vec![slip.collect()];

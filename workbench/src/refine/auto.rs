@@ -681,6 +681,7 @@ fn sign_shape_of(old: &EffectEntry, new: &diagnose::Candidate) -> Option<Shape> 
     let signed = |k: EffectKind| k.fit_traits().sign_shaped;
     (signed(old.kind) && signed(new.effect) && old.kind != new.effect).then(|| Shape {
         sign_epsilon: old.shape.sign_epsilon,
+        sign_time: old.shape.sign_time,
         sign_lead: old.shape.sign_lead,
         stick_velocity: old.shape.stick_velocity,
         ..new.shape.clone()

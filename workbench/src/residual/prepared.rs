@@ -416,6 +416,7 @@ impl Prepared {
             intersample: self.intersample,
             gear_ratio: self.gear_ratio,
             position_step: self.position_step,
+            rest_velocity: self.stick_velocity,
         }
     }
 
