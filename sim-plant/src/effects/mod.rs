@@ -278,6 +278,15 @@ pub struct Shape {
     pub stick_velocity: f64,
 }
 
+impl Shape {
+    /// Takes `from`'s dry-friction sign zone, ε and T: one point of the sign grid, which a
+    /// search moves as one.
+    pub fn set_sign_zone(&mut self, from: &Shape) {
+        self.sign_epsilon = from.sign_epsilon;
+        self.sign_time = from.sign_time;
+    }
+}
+
 impl Default for Shape {
     fn default() -> Self {
         Self {

@@ -276,15 +276,14 @@ pub(super) fn search_shapes(model: &mut Model, p: &On, start: StickStart, only: 
         .effects
         .iter()
         .find(|e| e.kind.fit_traits().search == ShapeSearch::Sign)
-        .map(|e| (e.shape.sign_epsilon, e.shape.sign_time, e.shape.sign_lead));
-    if let Some((eps, time, lead)) = sign {
+        .map(|e| e.shape.clone());
+    if let Some(sign) = sign {
         for e in model.effects.iter_mut().filter(|e| {
             let f = e.kind.fit_traits();
             f.sign_shaped && f.search == ShapeSearch::None
         }) {
-            e.shape.sign_epsilon = eps;
-            e.shape.sign_time = time;
-            e.shape.sign_lead = lead;
+            e.shape.set_sign_zone(&sign);
+            e.shape.sign_lead = sign.sign_lead;
         }
     }
 }
@@ -342,14 +341,9 @@ fn search_each(model: &mut Model, p: &On, start: StickStart, only: Only) {
             }
             ShapeSearch::Sign => {
                 let set_lead = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_lead = x;
-                let set_eps = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_epsilon = x;
-                let set_time = |m: &mut Model, e: usize, x: f64| m.effects[e].shape.sign_time = x;
-                let set = SignSetters {
-                    eps: &set_eps,
-                    time: &set_time,
-                    lead: &set_lead,
-                };
-                search_sign(model, p, e, &set, true);
+                let set_zone =
+                    |m: &mut Model, e: usize, s: &Shape| m.effects[e].shape.set_sign_zone(s);
+                search_sign(model, p, e, &set_zone, &set_lead, true);
             }
             ShapeSearch::Period => {
                 // The period is the effect's smooth shape (the registry test holds it to that).
@@ -698,14 +692,8 @@ fn set_dry(m: &mut Model, e: usize, f: impl Fn(&mut Shape)) {
 /// [`search_sign`]).
 fn search_dry_sign(model: &mut Model, p: &On, e: usize, search_lead: bool) {
     let set_lead = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_lead = x);
-    let set_eps = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_epsilon = x);
-    let set_time = |m: &mut Model, e: usize, x: f64| set_dry(m, e, |s| s.sign_time = x);
-    let set = SignSetters {
-        eps: &set_eps,
-        time: &set_time,
-        lead: &set_lead,
-    };
-    search_sign(model, p, e, &set, search_lead);
+    let set_zone = |m: &mut Model, e: usize, z: &Shape| set_dry(m, e, |s| s.set_sign_zone(z));
+    search_sign(model, p, e, &set_zone, &set_lead, search_lead);
 }
 
 /// The distinct values of a grid's shape coordinate, ascending.
@@ -753,28 +741,26 @@ impl StickStart {
     }
 }
 
-/// How a sign search writes the three parts of a dry-friction sign shape.
-struct SignSetters<'a> {
-    eps: &'a (dyn Fn(&mut Model, usize, f64) + Sync),
-    time: &'a (dyn Fn(&mut Model, usize, f64) + Sync),
-    lead: &'a (dyn Fn(&mut Model, usize, f64) + Sync),
-}
-
 /// A dry-friction sign shape: the zones in velocity of Coulomb's grid × sign lead (−6…8
 /// samples) on a joint grid — the two trade off against each other — then every zone of the
 /// grid (in velocity or in time) at that lead, then the lead by golden section.
-fn search_sign(model: &mut Model, p: &On, e: usize, set: &SignSetters, search_lead: bool) {
+fn search_sign(
+    model: &mut Model,
+    p: &On,
+    e: usize,
+    set_zone: &(dyn Fn(&mut Model, usize, &Shape) + Sync),
+    set_lead: &(dyn Fn(&mut Model, usize, f64) + Sync),
+    search_lead: bool,
+) {
     let dt = p.dt;
     let grid = sim_plant::effects::shape_grid(EffectKind::Coulomb, &p.trajectory());
     // The grid's index as the searched coordinate: each point sets both ε and T.
     let points: Vec<f64> = (0..grid.len()).map(|i| i as f64).collect();
     let set_smoothing = |m: &mut Model, e: usize, x: f64| {
         if let Some(s) = grid.get(x as usize) {
-            (set.eps)(m, e, s.sign_epsilon);
-            (set.time)(m, e, s.sign_time);
+            set_zone(m, e, s);
         }
     };
-    let set_lead = set.lead;
     if !search_lead {
         set_lead(model, e, 0.0);
         line_search(model, p, e, &points, &set_smoothing);
