@@ -134,25 +134,31 @@ pub fn shape_grid(traj: &Trajectory) -> Vec<Shape> {
 /// Steps a screen of `residual` picks out (strongest first, at most four), and how many it
 /// looked at: the sawtooth `u − Q_Δ(u)` is periodic in the command with period Δ, so its
 /// fundamental shows as a peak of the residual's periodogram over the recorded command
-/// (`signal::periodogram_peaks`), between the extremes of [`shape_grid`]. The sawtooth's
-/// correlation peak is about 1/(2K) wide in Δ (K = max|u|/Δ steps, see the refit's search):
-/// a command spanning 27 steps kept 40 % of a residual at its step and 4 % two per cent off,
-/// so the log grid's 6 % steps can pass over it.
+/// (`signal::periodogram_peaks`), from the grid's coarsest step down to 1/1000 of the
+/// command's span. The sawtooth's correlation peak is about 1/(2K) wide in Δ (K = max|u|/Δ
+/// steps, see the refit's search): a command spanning 27 steps kept 40 % of a residual at its
+/// step and 4 % two per cent off, so the log grid's 6 % steps can pass over it.
+///
+/// The screen reaches below the grid's floor (the command's sample-to-sample scatter): where
+/// the log holds the very command the converter got, a step finer than the command moves in
+/// one sample still leaves its sawtooth, exactly computable, in the residual; where the log
+/// adds noise to it, the noise blurs that sawtooth away and the peak does not stand out.
+/// Below 1/1000 of the span (K ≈ 500) the walk would outgrow its budget, and a step whose
+/// whole sawtooth (RMS Δ/√12, which the low-pass only lowers) is under 0.3 of the residual's
+/// RMS could explain less than a tenth of it, so neither is walked.
 pub fn screen(traj: &Trajectory, residual: &[f64]) -> (Vec<Shape>, usize) {
-    let grid = shape_grid(traj);
-    let (lo, hi) = grid.iter().fold((f64::INFINITY, 0.0f64), |(l, h), s| {
-        (l.min(s.quantum), h.max(s.quantum))
-    });
+    let hi = shape_grid(traj)
+        .iter()
+        .fold(0.0f64, |h, s| h.max(s.quantum));
     let (u, window) = traj.recorded_input();
     let Some(u) = u.get(window) else {
         return (Vec::new(), 0);
     };
-    // Steps down to 1/400 of the command's span (K ≈ 200 for a command swinging ±|u|): the
-    // screen then walks them at its finest, a quarter of the peak, within its budget.
     let (a, b) = u
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-    let lo = lo.max((b - a) / 400.0);
+    let rms = (residual.iter().map(|r| r * r).sum::<f64>() / residual.len().max(1) as f64).sqrt();
+    let lo = ((b - a) / 1000.0).max(0.3 * 12f64.sqrt() * rms).min(hi);
     let (steps, count) = super::signal::periodogram_peaks(u, residual, (lo, hi), 4);
     let shapes = steps
         .into_iter()
@@ -208,6 +214,36 @@ mod tests {
             assert!((found / d - 1.0).abs() < 0.25 / k, "{d}: {found}");
             assert!(looked_at > shape_grid(&traj).len(), "{looked_at}");
         }
+    }
+
+    /// A digital log of a dithered command (a 0.1 mN·m lattice, moving ~0.04 per sample):
+    /// a converter's step well under that scatter, below the grid's floor, still leaves the
+    /// exact sawtooth of the logged command, and the screen finds it in noise half as strong.
+    #[test]
+    fn the_screen_finds_a_step_finer_than_the_command_moves_per_sample() {
+        let (dt, n) = (1e-3, 12_000);
+        let noise = super::super::signal::unit_noise;
+        let u: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let x = 0.5 * (std::f64::consts::TAU * 0.3 * t).sin() + 0.05 * noise(i as u64);
+                (x / 1e-4).round() * 1e-4
+            })
+            .collect();
+        let zero = vec![0.0; n];
+        let traj = Trajectory::unfiltered(dt, &u, &zero, &zero, &zero);
+        let d = 0.00263;
+        let floor = shape_grid(&traj)[0].quantum;
+        assert!(d < 0.5 * floor, "the step {d} is not below the grid's floor {floor}");
+        let e: Vec<f64> = u
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| error(x, d) + 0.5 * d / 12f64.sqrt() * noise(i as u64 + 7 * n as u64))
+            .collect();
+        let (shapes, _) = screen(&traj, &e);
+        let found = shapes.first().expect("a peak").quantum;
+        let k = 0.55 / d;
+        assert!((found / d - 1.0).abs() < 0.25 / k, "{d}: {found}");
     }
 
     #[test]
