@@ -958,6 +958,10 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             a.png,
         )?);
     }
+    let extrapolated = val
+        .as_ref()
+        .map(|v| refine::extrapolation_notes(&model, &p, v))
+        .unwrap_or_default();
     if a.json {
         let mut j = serde_json::json!({
             "residual_mode": run.last.residual_mode,
@@ -967,6 +971,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             "model": model.to_sim(),
             "model_file": save,
             "resampled": resampled,
+            "notes": extrapolated,
         });
         schema::stamp(&mut j, &a.data.units()?);
         println!("{j}");
@@ -974,7 +979,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
         print!("{table}");
         println!("stopped: {}", run.stop);
         println!("final diagnosis: {}", run.last.verdict.text);
-        for n in &run.last.notes {
+        for n in run.last.notes.iter().chain(&extrapolated) {
             println!("note: {n}");
         }
         if let Some(r) = report_path {
@@ -1121,12 +1126,17 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     });
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
     model.save(&save)?;
+    let extrapolated = val
+        .as_ref()
+        .map(|v| refine::extrapolation_notes(&model, &p, v))
+        .unwrap_or_default();
     if a.json {
         let mut j = serde_json::json!({
             "report": r,
             "as_given": as_given,
             "model_file": save,
             "resampled": resampled,
+            "notes": extrapolated,
         });
         schema::stamp(&mut j, &a.data.units()?);
         println!("{j}");
@@ -1135,6 +1145,9 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
             print!("{g}");
         }
         print!("{}", fit_text(&r));
+        for n in &extrapolated {
+            println!("note: {n}");
+        }
         for (q, (lo, hi)) in model.params().iter().zip(model.fit_bounds()) {
             let at = lo
                 .filter(|lo| q.value <= *lo)

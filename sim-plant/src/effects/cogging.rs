@@ -35,6 +35,7 @@ pub const FIT: FitTraits = FitTraits {
         get: |s, n| (s.cogging_period > 0.0).then(|| TAU / (s.cogging_period * n)),
         set: |s, v, n| s.cogging_period = TAU / (v * n),
     }],
+    position_period: Some(|s, _| s.cogging_period),
     ..FitTraits::PLAIN
 };
 

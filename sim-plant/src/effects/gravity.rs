@@ -19,7 +19,10 @@ pub const AMPLITUDES: &[&str] = &["sin", "cos"];
 pub const SIGN: Option<f64> = None;
 
 /// What the fitter needs to know beyond the columns (see [`FitTraits`]).
-pub const FIT: FitTraits = FitTraits::PLAIN;
+pub const FIT: FitTraits = FitTraits {
+    position_period: Some(|_, n| std::f64::consts::TAU * super::signal::positive_or(n, 1.0)),
+    ..FitTraits::PLAIN
+};
 
 crate::define_params! {
     /// Sine amplitude, m·g·l·cos φ (N·m).

@@ -413,6 +413,10 @@ pub struct FitTraits {
     /// Effects this one contains as a special case (a ripple of period 2π is gravity): a
     /// swap between them is a nested comparison BIC can judge.
     pub nests: &'static [EffectKind],
+    /// The period in the trajectory's position of an effect periodic in it (shape, gear
+    /// ratio → period; 0 = unknown): a fit carries over only to the positions it saw, give or
+    /// take what a period's error slips its phase there.
+    pub position_period: Option<fn(&Shape, f64) -> f64>,
 }
 
 impl FitTraits {
@@ -431,6 +435,7 @@ impl FitTraits {
         amplitude_by_search: false,
         requires: &[],
         nests: &[],
+        position_period: None,
     };
 }
 

@@ -39,6 +39,7 @@ pub const FIT: FitTraits = FitTraits {
     search: ShapeSearch::Period,
     file_shape: &[same_shape!("period" => ripple_period)],
     nests: &[EffectKind::Gravity],
+    position_period: Some(|s, _| s.ripple_period),
     ..FitTraits::PLAIN
 };
 

@@ -20,12 +20,15 @@
 //!
 //! The module's parts: this file holds the scores, the refit (least squares, then the shape
 //! searches, then LM) and `fit --add`; `search` the shape searches least squares cannot do;
-//! [`auto()`] the `--auto` loop (choice by BIC, the delay probe, the swap pass).
+//! [`auto()`] the `--auto` loop (choice by BIC, the delay probe, the swap pass); `coverage`
+//! what a validation record asks of a fit beyond the positions it saw.
 
 mod auto;
+mod coverage;
 mod search;
 
 pub use auto::{auto, auto_observed, AutoRun, AutoStep};
+pub use coverage::extrapolation_notes;
 pub use search::best_shape;
 
 use serde::Serialize;
