@@ -80,6 +80,9 @@ pub struct EffectEntry {
     pub shape: Shape,
     /// Amplitudes, one per fingerprint column.
     pub params: Vec<Param>,
+    /// 1σ of the smooth shape (`FitTraits::smooth_shape`: a ripple's period, …) where the
+    /// refit's Levenberg–Marquardt estimated it; `None` for a shape only searched on a grid.
+    pub shape_sigma: Option<f64>,
 }
 
 /// Rigid inertia + effects.
@@ -750,6 +753,7 @@ impl EffectEntry {
                     None => Param::free(n, 0.0),
                 })
                 .collect(),
+            shape_sigma: None,
         }
     }
 }

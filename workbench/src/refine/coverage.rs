@@ -30,13 +30,24 @@ pub fn extrapolation_notes(model: &Model, est: &Prepared, val: &Prepared) -> Vec
             let period = (e.kind.fit_traits().position_period?)(&e.shape, est.gear_ratio);
             let periods = beyond / period;
             (period > 0.0 && periods >= 1.0).then(|| {
+                // The fitted period's own 1σ, where the refit estimated it, as a phase there.
+                let slip = e
+                    .shape_sigma
+                    .map(|s| {
+                        format!(
+                            " (its 1σ, {:.2} %, is {:.2} rad of phase)",
+                            100.0 * s / period,
+                            std::f64::consts::TAU * periods * s / period
+                        )
+                    })
+                    .unwrap_or_default();
                 format!(
                     "{}: the validation record reaches {beyond:.3} {unit} beyond the positions \
                      the estimation record covered ({vlo:.3}…{vhi:.3} against {lo:.3}…{hi:.3} \
                      {unit}): {periods:.1} periods of {period:.4} {unit} past the {:.1} it was \
                      fitted on, where an error δ in the period slips the phase by \
-                     2π·{periods:.1}·δ. Record the estimation over the positions the joint \
-                     will use.",
+                     2π·{periods:.1}·δ{slip}. Record the estimation over the positions the \
+                     joint will use.",
                     e.kind.name(),
                     (hi - lo) / period,
                 )
@@ -93,6 +104,10 @@ mod tests {
             n.starts_with("ripple:") && n.contains("reaches 1.700 rad beyond"),
             "{n}"
         );
+        assert!(!n.contains("1σ"), "{n}");
+        m.effects[1].shape_sigma = Some(0.004);
+        let n = &extrapolation_notes(&m, &est, &prepared(0.1, -1.5))[0];
+        assert!(n.contains("its 1σ, 1.00 %, is 0.27 rad of phase"), "{n}");
         assert!(extrapolation_notes(&m, &est, &prepared(0.3, 0.8)).is_empty());
         let plain = Model::baseline();
         assert!(extrapolation_notes(&plain, &est, &prepared(0.1, -1.5)).is_empty());

@@ -207,6 +207,9 @@ fn refit_from_searched(
     only: Only,
 ) -> Result<(), fit::FitError> {
     let on = On::new(p);
+    for e in model.effects.iter_mut() {
+        e.shape_sigma = None;
+    }
     on.refit(model)?;
     search_shapes(model, &on, start, only);
     let before = on.refit(model)?.rss;
@@ -252,6 +255,15 @@ fn refit_from_searched(
     let mut m = apply(&lm.x);
     if let Ok(f) = on.refit(&mut m) {
         if f.rss < before && m.physical_split().is_ok() {
+            // The batch-means 1σ of ln(shape), with the amplitudes re-solved at each trial
+            // shape: its variable-projection Jacobian already carries their trade-off.
+            for (k, &e) in lm_idx.iter().enumerate() {
+                let entry = &mut m.effects[e];
+                let var = lm.cov.get((k, k)).copied().unwrap_or(f64::NAN);
+                entry.shape_sigma = smooth_shape(entry.kind, &entry.shape)
+                    .map(|v| v * var.sqrt())
+                    .filter(|s| s.is_finite());
+            }
             *model = m;
         }
     }
@@ -294,7 +306,7 @@ pub fn param_rows(model: &Model) -> Vec<ParamRow> {
                 owner: e.kind.name().into(),
                 name: "shape".into(),
                 value: (a.get)(&e.shape),
-                sigma: 0.0,
+                sigma: e.shape_sigma.unwrap_or(0.0),
                 unit: unit(a.unit),
             });
         }
@@ -367,6 +379,16 @@ mod tests {
 
     /// [`synthetic`] with the motion about `x0` (rad).
     fn synthetic_around(x0: f64, extra: impl Fn(f64, f64) -> f64, counts: f64) -> Prepared {
+        synthetic_with(x0, extra, counts, 3e-3)
+    }
+
+    /// [`synthetic_around`] with torque noise of RMS `noise` (N·m).
+    fn synthetic_with(
+        x0: f64,
+        extra: impl Fn(f64, f64) -> f64,
+        counts: f64,
+        noise: f64,
+    ) -> Prepared {
         let (n, dt) = (20_000, 1e-3);
         let (j, b) = (J, 0.03);
         let step = std::f64::consts::TAU / counts;
@@ -381,7 +403,7 @@ mod tests {
             let v = 0.08 * w1 * (w1 * t).cos() + 0.03 * w2 * (w2 * t + 1.0).cos();
             let a = -0.08 * w1 * w1 * (w1 * t).sin() - 0.03 * w2 * w2 * (w2 * t + 1.0).sin();
             let tau = j * a + b * v + extra(x, v);
-            let noise = (unit_uniform(2 * i as u64) - 0.5) * 12f64.sqrt() * 3e-3;
+            let noise = (unit_uniform(2 * i as u64) - 0.5) * 12f64.sqrt() * noise;
             let jitter = (unit_uniform(2 * i as u64 + 1) - 0.5) * 12f64.sqrt() * 0.2 * step;
             time.push(t);
             input.push(tau + noise);
@@ -563,6 +585,38 @@ mod tests {
             (m.inertia.value / j - 1.0).abs() < 5e-3,
             "inertia {} vs {j}",
             m.inertia.value
+        );
+        let row = param_rows(&m).into_iter().find(|r| r.name == "shape");
+        assert_eq!(row.map(|r| r.sigma), m.effects[1].shape_sigma);
+    }
+
+    /// The ripple period's 1σ is a statistical one: on the same motion with four times the
+    /// torque noise it grows about fourfold (the sine's own harmonics and the encoder's
+    /// counts are the same in both records).
+    #[test]
+    fn the_periods_sigma_grows_with_the_noise() {
+        let sigma = |noise: f64| {
+            let p = synthetic_with(
+                0.0,
+                |x, _| 0.01 * (std::f64::consts::TAU * x / 0.05).sin(),
+                65_536.0,
+                noise,
+            );
+            let mut m = Model::baseline();
+            m.add(
+                EffectKind::Ripple,
+                Shape {
+                    ripple_period: 0.051,
+                    ..Shape::default()
+                },
+            );
+            refit_all(&mut m, &p).expect("fit");
+            m.effects[1].shape_sigma.expect("the period's 1σ")
+        };
+        let (low, high) = (sigma(3e-3), sigma(12e-3));
+        assert!(
+            low > 0.0 && (2.5..6.0).contains(&(high / low)),
+            "{low} → {high}"
         );
     }
 
