@@ -239,6 +239,7 @@ class FitResult:
     model: Model
     schema_version: int
     units: Units
+    notes: list = dataclasses.field(default_factory=list)
     json: dict = dataclasses.field(repr=False, compare=False, default_factory=dict)
 
     def to_json(self) -> dict:
@@ -272,6 +273,7 @@ class AutoResult:
     resampled: Optional[Resampled]
     schema_version: int
     units: Units
+    notes: list = dataclasses.field(default_factory=list)
     json: dict = dataclasses.field(repr=False, compare=False, default_factory=dict)
 
     def to_json(self) -> dict:
@@ -535,6 +537,7 @@ def fit(
         model=fitted,
         schema_version=d["schema_version"],
         units=_units(d["units"]),
+        notes=list(d["notes"]),
         json=d,
     )
 
@@ -585,6 +588,7 @@ def auto(
         resampled=_resampled(d["resampled"]),
         schema_version=d["schema_version"],
         units=_units(d["units"]),
+        notes=list(d["notes"]),
         json=d,
     )
 

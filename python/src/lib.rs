@@ -503,6 +503,10 @@ fn py_auto(
             "final": run.last.to_json(),
             "model": m.to_sim(),
             "resampled": rec.inner.resampled,
+            "notes": val
+                .as_ref()
+                .map(|v| refine::extrapolation_notes(&m, &p, v))
+                .unwrap_or_default(),
         });
         stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))
@@ -551,6 +555,10 @@ fn py_fit(
             "report": r,
             "as_given": as_given,
             "resampled": rec.inner.resampled,
+            "notes": val
+                .as_ref()
+                .map(|v| refine::extrapolation_notes(&m, &p, v))
+                .unwrap_or_default(),
         });
         stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))
