@@ -503,10 +503,7 @@ fn py_auto(
             "final": run.last.to_json(),
             "model": m.to_sim(),
             "resampled": rec.inner.resampled,
-            "notes": val
-                .as_ref()
-                .map(|v| refine::extrapolation_notes(&m, &p, v))
-                .unwrap_or_default(),
+            "notes": refine::extrapolation_notes(&m, &p, val.as_ref()),
         });
         stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))
@@ -555,10 +552,7 @@ fn py_fit(
             "report": r,
             "as_given": as_given,
             "resampled": rec.inner.resampled,
-            "notes": val
-                .as_ref()
-                .map(|v| refine::extrapolation_notes(&m, &p, v))
-                .unwrap_or_default(),
+            "notes": refine::extrapolation_notes(&m, &p, val.as_ref()),
         });
         stamp(&mut j, rec, Mode::Equation)?;
         Ok((j.to_string(), Model { inner: m }))

@@ -958,10 +958,7 @@ pub fn diagnose(a: DiagnoseArgs) -> anyhow::Result<()> {
             a.png,
         )?);
     }
-    let extrapolated = val
-        .as_ref()
-        .map(|v| refine::extrapolation_notes(&model, &p, v))
-        .unwrap_or_default();
+    let extrapolated = refine::extrapolation_notes(&model, &p, val.as_ref());
     if a.json {
         let mut j = serde_json::json!({
             "residual_mode": run.last.residual_mode,
@@ -1126,10 +1123,7 @@ pub fn fit(a: FitArgs) -> anyhow::Result<()> {
     });
     let r = refine::fit_add(&mut model, &p, kind, val.as_ref())?;
     model.save(&save)?;
-    let extrapolated = val
-        .as_ref()
-        .map(|v| refine::extrapolation_notes(&model, &p, v))
-        .unwrap_or_default();
+    let extrapolated = refine::extrapolation_notes(&model, &p, val.as_ref());
     if a.json {
         let mut j = serde_json::json!({
             "report": r,

@@ -8,8 +8,12 @@ use crate::model::Model;
 use crate::residual::Prepared;
 
 /// One note per position-periodic effect of `model` whose period the validation record
-/// `val` extrapolates over at least one period beyond the estimation record `est`'s range.
-pub fn extrapolation_notes(model: &Model, est: &Prepared, val: &Prepared) -> Vec<String> {
+/// `val` extrapolates over at least one period beyond the estimation record `est`'s range
+/// (none without a validation record).
+pub fn extrapolation_notes(model: &Model, est: &Prepared, val: Option<&Prepared>) -> Vec<String> {
+    let Some(val) = val else {
+        return Vec::new();
+    };
     let range = |x: &[f64]| {
         x.iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
@@ -97,7 +101,7 @@ mod tests {
             },
         );
         let est = prepared(0.2, 0.9);
-        let notes = extrapolation_notes(&m, &est, &prepared(0.1, -1.5));
+        let notes = extrapolation_notes(&m, &est, Some(&prepared(0.1, -1.5)));
         assert_eq!(notes.len(), 1, "{notes:?}");
         let n = &notes[0];
         assert!(
@@ -106,10 +110,11 @@ mod tests {
         );
         assert!(!n.contains("1σ"), "{n}");
         m.effects[1].shape_sigma = Some(0.004);
-        let n = &extrapolation_notes(&m, &est, &prepared(0.1, -1.5))[0];
+        let n = &extrapolation_notes(&m, &est, Some(&prepared(0.1, -1.5)))[0];
         assert!(n.contains("its 1σ, 1.00 %, is 0.27 rad of phase"), "{n}");
-        assert!(extrapolation_notes(&m, &est, &prepared(0.3, 0.8)).is_empty());
+        assert!(extrapolation_notes(&m, &est, Some(&prepared(0.3, 0.8))).is_empty());
+        assert!(extrapolation_notes(&m, &est, None).is_empty());
         let plain = Model::baseline();
-        assert!(extrapolation_notes(&plain, &est, &prepared(0.1, -1.5)).is_empty());
+        assert!(extrapolation_notes(&plain, &est, Some(&prepared(0.1, -1.5))).is_empty());
     }
 }
