@@ -64,7 +64,6 @@ pub fn extrapolation_notes(model: &Model, est: &Prepared, val: Option<&Prepared>
 mod tests {
     use super::*;
     use crate::data::{Columns, Recording};
-    use sim_plant::effects::{EffectKind, Shape};
 
     fn prepared(from: f64, to: f64) -> Prepared {
         let n = 4000;
@@ -92,14 +91,7 @@ mod tests {
     /// does a model without a position-periodic term.
     #[test]
     fn a_ripple_validated_periods_away_gets_a_note() {
-        let mut m = Model::baseline();
-        m.add(
-            EffectKind::Ripple,
-            Shape {
-                ripple_period: 0.4,
-                ..Shape::default()
-            },
-        );
+        let mut m = super::super::tests::with_ripple(0.4);
         let est = prepared(0.2, 0.9);
         let notes = extrapolation_notes(&m, &est, Some(&prepared(0.1, -1.5)));
         assert_eq!(notes.len(), 1, "{notes:?}");

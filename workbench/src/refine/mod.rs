@@ -551,6 +551,19 @@ mod tests {
         assert!(!m.has(EffectKind::Asymmetry), "{names:?} after {moves:?}");
     }
 
+    /// The baseline with a ripple of spatial period `period` (its amplitudes free at 0).
+    pub(super) fn with_ripple(period: f64) -> Model {
+        let mut m = Model::baseline();
+        m.add(
+            EffectKind::Ripple,
+            Shape {
+                ripple_period: period,
+                ..Shape::default()
+            },
+        );
+        m
+    }
+
     /// A rigid joint with a position ripple, recorded through a 2¹⁶-count encoder: the
     /// differentiated acceleration carries enough encoder noise that ordinary least squares
     /// shrinks the inertia by more than 1 %. The refit with LM over the ripple period must keep
@@ -567,14 +580,7 @@ mod tests {
         let acc_noise =
             p.position_noise_var * super::super::diff::acceleration_noise_gain(40.0, p.dt).powi(2);
         assert!(acc_noise / a2 > 0.02, "{}", acc_noise / a2);
-        let mut m = Model::baseline();
-        m.add(
-            EffectKind::Ripple,
-            Shape {
-                ripple_period: 0.051,
-                ..Shape::default()
-            },
-        );
+        let mut m = with_ripple(0.051);
         refit_all(&mut m, &p).expect("fit");
         let period_fit = m.effects[1].shape.ripple_period;
         assert!(
@@ -602,14 +608,7 @@ mod tests {
                 65_536.0,
                 noise,
             );
-            let mut m = Model::baseline();
-            m.add(
-                EffectKind::Ripple,
-                Shape {
-                    ripple_period: 0.051,
-                    ..Shape::default()
-                },
-            );
+            let mut m = with_ripple(0.051);
             refit_all(&mut m, &p).expect("fit");
             m.effects[1].shape_sigma.expect("the period's 1σ")
         };
