@@ -125,6 +125,20 @@ fn a_hil_recording_names_its_friction_and_the_fit_recovers_the_preset() {
         alpha.is_some_and(|a| a < 0.0),
         "compliance −J2/J1 = {alpha:?}"
     );
+    // Each addition lowers the error it was taken to lower: a full refit from the grid shape
+    // that settles in a worse optimum is not the step taken.
+    for w in run.steps.windows(2) {
+        if w[1].replaced.is_none() {
+            assert!(
+                w[1].score.rms <= w[0].score.rms,
+                "step {} ({:?}) raised the RMS {} → {} ({added:?})",
+                w[1].step,
+                w[1].added,
+                w[0].score.rms,
+                w[1].score.rms
+            );
+        }
+    }
     let last = run.steps.last().unwrap().score;
     assert!(
         last.fit_percent > 90.0,

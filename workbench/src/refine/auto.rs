@@ -272,7 +272,9 @@ pub(super) fn best_validating(
 
 /// The step as taken: `c` added to `model` at its grid shape and refitted in full (the
 /// ranking weighed it with the model's other shapes as they were), or `fitted` when that
-/// leaves the physical range.
+/// leaves the physical range or fits worse than `model` did without the effect: a full
+/// refit from the grid can settle in a worse optimum than the other shapes held where they
+/// were, and a step never raises the error it is taken to lower.
 fn full_refit(
     model: &Model,
     p: &Prepared,
@@ -282,7 +284,8 @@ fn full_refit(
     let mut m = model.clone();
     m.add(c.effect, c.shape.clone());
     refit_all(&mut m, p)?;
-    Ok(if m.physical().is_ok() { m } else { fitted })
+    let better = m.physical().is_ok() && score(&m, p).rms <= score(model, p).rms;
+    Ok(if better { m } else { fitted })
 }
 
 /// Whether `m` does at least as well as `before` on the validation record (true without one).
