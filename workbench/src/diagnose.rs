@@ -239,7 +239,7 @@ fn search_windowed(
     let z = residual::candidate_columns_on(kind, t, &shape);
     let rss: f64 = e.iter().map(|v| v * v).sum();
     let bias = input_noise_bias(kind, &shape, path, p.input_noise_var, e.len(), rss);
-    let (dr, first) = delta_rss_signed(&z, x0, g0i, e, bias.as_slice());
+    let (dr, first) = delta_rss_net(&z, x0, g0i, e, bias.as_slice());
     let dr = match kind.admissible_sign() {
         Some(sg) if first * sg <= 0.0 => 0.0,
         _ => dr,
@@ -274,7 +274,7 @@ fn search(
             return None;
         }
         let bias = input_noise_bias(kind, s, path, input_noise_var, e.len(), rss);
-        let (dr, first) = delta_rss_signed(&z, x0, g0i, e, bias.as_slice());
+        let (dr, first) = delta_rss_net(&z, x0, g0i, e, bias.as_slice());
         Some(match sign {
             Some(sg) if first * sg <= 0.0 => 0.0,
             _ => dr,
@@ -402,6 +402,25 @@ fn delta_rss_signed(
     let rss: f64 = e.iter().map(|v| v * v).sum();
     let dr = (ze.transpose() * theta.clone())[(0, 0)];
     (dr.clamp(0.0, rss), theta[0])
+}
+
+/// [`delta_rss_signed`] net of the noise `bias` shares with the residual, and never above the
+/// plain ΔRSS: the correction takes off what the noise explains by construction, and a σ² read
+/// high (a dithered command's second difference holds the dither) must not turn its excess into
+/// an explanation. The test scales its statistic by the same share, capped at 1 (`diagnose_with`).
+fn delta_rss_net(
+    z: &[Vec<f64>],
+    x0: &[Vec<f64>],
+    g0i: &DMatrix<f64>,
+    e: &[f64],
+    bias: &[NoiseBias],
+) -> (f64, f64) {
+    let (dr, first) = delta_rss_signed(z, x0, g0i, e, bias);
+    if bias.is_empty() {
+        return (dr, first);
+    }
+    let (raw, _) = delta_rss_signed(z, x0, g0i, e, &[]);
+    (dr.min(raw), first)
 }
 
 /// Partial projection of `e` on `z` after removing `x0`: the candidate's best-fit contribution.
@@ -885,6 +904,9 @@ pub fn diagnose_with(
     if let Some(note) = unexplained(&baseline, verdict.add) {
         notes.push(note);
     }
+    if let Some(note) = input_floor_reads_high(&baseline) {
+        notes.push(note);
+    }
     if let Some(note) = intersample_note(model, p, opts, rss) {
         notes.push(note);
     }
@@ -1018,6 +1040,25 @@ fn unexplained(b: &Baseline, verdict: Option<EffectKind>) -> Option<String> {
     })
 }
 
+/// A note when the input's share of the noise floor is above the whole residual. The residual
+/// holds at least the noise the recorded input carries, so an input floor above it is not that
+/// noise: the command's fast content moved the joint (a dither, steps, a controller acting on
+/// the encoder's counts), and the second difference the floor is estimated from read it as
+/// noise. The floor then reads high and every "× floor" figure low; `unexplained` stays quiet.
+fn input_floor_reads_high(b: &Baseline) -> Option<String> {
+    (b.input_noise_rms > b.rms).then(|| {
+        format!(
+            "noise floor: its input share ({}) is above the whole residual ({}), so it is not \
+             the recorded input's noise but fast content of the command that moves the joint (a \
+             dither, steps, a controller acting on the encoder's counts): the floor reads high \
+             and \"× floor\" figures low; the encoder's share ({}) is the reliable part",
+            eng(b.input_noise_rms),
+            eng(b.rms),
+            eng(b.encoder_noise_rms)
+        )
+    })
+}
+
 impl Diagnosis {
     /// The JSON object of the issue's interface (plus extra fields).
     pub fn to_json(&self) -> serde_json::Value {
@@ -1138,6 +1179,60 @@ mod tests {
         assert!(lower <= 0.55 * floor, "{lower} vs {floor} at {f} Hz");
         // A residual far above the floor needs no lower band than the first step.
         assert_eq!(lower_cutoff(&p, j, 100.0 * floor), Some(90.0));
+    }
+
+    /// The noise correction takes off what a column's noise explains by construction and
+    /// nothing more: a shared-noise estimate far above what the column and the residual hold
+    /// (σ² read from a dithered command's second difference) would, subtracted as it stands,
+    /// turn a column unrelated to the residual into an explanation of all of it.
+    #[test]
+    fn the_noise_correction_never_adds_explanation() {
+        let n = 4000;
+        let x0 = vec![vec![1.0; n]];
+        let g0i = gram_inverse(&gram(&x0));
+        let mut e: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).sin()).collect();
+        let mean = e.iter().sum::<f64>() / n as f64;
+        e.iter_mut().for_each(|v| *v -= mean);
+        let z = vec![e
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (k as f64 * 1.3).cos() + 0.01 * v)
+            .collect::<Vec<f64>>()];
+        let rss: f64 = e.iter().map(|v| v * v).sum();
+        let zz: f64 = z[0].iter().map(|v| v * v).sum();
+        let (plain, _) = delta_rss_signed(&z, &x0, &g0i, &e, &[]);
+        let high = [NoiseBias {
+            cross: -(zz * rss).sqrt(),
+            energy: 0.0,
+        }];
+        let (subtracted, _) = delta_rss_signed(&z, &x0, &g0i, &e, &high);
+        assert!(
+            subtracted > 0.9 * rss && plain < 1e-3 * rss,
+            "{subtracted} {plain} {rss}"
+        );
+        let (net, _) = delta_rss_net(&z, &x0, &g0i, &e, &high);
+        assert!(net <= plain, "{net} vs plain {plain}");
+        // A shared term of the product's own sign is taken off as it stands.
+        let ze: f64 = z[0].iter().zip(&e).map(|(a, b)| a * b).sum();
+        let part = [NoiseBias {
+            cross: 0.5 * ze,
+            energy: 0.0,
+        }];
+        let (net, _) = delta_rss_net(&z, &x0, &g0i, &e, &part);
+        assert!((net / plain - 0.25).abs() < 0.01, "{net} vs {plain}");
+    }
+
+    /// An input floor above the whole residual cannot be the input's noise, and the report
+    /// says so; one below it is left alone.
+    #[test]
+    fn an_input_floor_above_the_residual_is_named() {
+        let note = input_floor_reads_high(&baseline(0.5, 0.0)).expect("0.6 above 0.5");
+        assert!(
+            note.contains("input share (0.6) is above the whole residual (0.5)")
+                && note.contains("encoder's share (0.8)"),
+            "{note}"
+        );
+        assert_eq!(input_floor_reads_high(&baseline(0.7, 0.0)), None);
     }
 
     /// "No significant missing effect" on a residual well above its floor says that the
